@@ -1,0 +1,1 @@
+"""Estimation backends: the GTSAM pose graph."""

@@ -1,0 +1,1 @@
+"""Sensor frontends: log readers, radar odometry and camera odometry."""

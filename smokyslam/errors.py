@@ -1,0 +1,37 @@
+"""The smokyslam exception hierarchy.
+
+Library code raises these; the CLI turns them into one line on stderr and exit code 1.
+Every message names the problem and, where there is one, the offending file or key.
+"""
+
+
+class SmokySlamError(Exception):
+    """Base class of every error smokyslam reports to a user."""
+
+
+class ConfigError(SmokySlamError):
+    """A configuration file or option is invalid (unknown key, bad value)."""
+
+
+class LogError(SmokySlamError):
+    """A sensor log cannot be read: missing, not a bag, truncated or corrupt."""
+
+
+class TopicError(LogError):
+    """A topic the run needs is missing from the log."""
+
+
+class MessageError(LogError):
+    """A message in a log is malformed (truncated point cloud, NaN points, bad encoding)."""
+
+
+class MapFileError(SmokySlamError):
+    """A map file (map_server YAML + image) is missing, malformed or inconsistent."""
+
+
+class WorldError(SmokySlamError):
+    """A simulation world cannot be built (unknown name, unusable floor plan)."""
+
+
+class EstimationError(SmokySlamError):
+    """An estimator failed in a way the caller should report (e.g. a degenerate graph)."""

@@ -1,0 +1,1 @@
+"""Scoring against ground truth: map quality and trajectory accuracy."""

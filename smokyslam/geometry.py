@@ -1,0 +1,204 @@
+"""Frames, units and conversions: the one place where they are defined.
+
+Conventions
+-----------
+- World frame ``map``: x east, y north, z up; metres.
+- ``base_link``: the carried rig at floor level, x forward, y left, z up.
+- ``radar``: ti_mmwave_rospkg axes, x forward (boresight), y left, z up.
+- ``camera``: optical axes, z forward, x right, y down.
+- ``T_a_b`` is a 4x4 (or 3x3 in 2D) homogeneous transform mapping points in frame ``b``
+  into frame ``a``: ``p_a = T_a_b @ p_b``.
+- Planar poses are ``(x_m, y_m, yaw_rad)``; yaw is counter-clockwise from +x.
+- Quaternions are ``quat_wxyz`` inside smokyslam. ROS messages and scipy use xyzw;
+  convert only with :func:`quat_wxyz_from_xyzw` / :func:`quat_xyzw_from_wxyz`.
+- Grids: arrays are indexed ``[iy, ix]`` with iy growing with world y; cell ``[0, 0]`` has
+  its lower-left corner at ``origin_xy_m``. Image files flip rows (row 0 is the top).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
+    """Wrap angles to [-pi, pi)."""
+    return (np.asarray(angle_rad) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+# ---------------------------------------------------------------- SE(2)
+
+
+def se2_matrix(x_m: float, y_m: float, yaw_rad: float) -> np.ndarray:
+    """(3, 3) homogeneous matrix of a planar pose."""
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, -s, x_m], [s, c, y_m], [0.0, 0.0, 1.0]])
+
+
+def se2_from_matrix(T: np.ndarray) -> np.ndarray:
+    """Planar pose ``[x_m, y_m, yaw_rad]`` of a (3, 3) or (4, 4) transform (z, roll, pitch dropped)."""
+    T = np.asarray(T, dtype=float)
+    t = T[:2, -1]
+    return np.array([t[0], t[1], np.arctan2(T[1, 0], T[0, 0])])
+
+
+def se2_compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pose composition ``a * b`` of ``[x, y, yaw]`` arrays; broadcasts over leading axes."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, wrap_angle(a[..., 2] + b[..., 2])], axis=-1)
+
+
+def se2_inverse(a: np.ndarray) -> np.ndarray:
+    """Inverse of ``[x, y, yaw]`` poses; broadcasts over leading axes."""
+    a = np.asarray(a, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -(c * a[..., 0] + s * a[..., 1])
+    y = -(-s * a[..., 0] + c * a[..., 1])
+    return np.stack([x, y, wrap_angle(-a[..., 2])], axis=-1)
+
+
+def se2_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Relative pose ``a^-1 * b``: ``b`` expressed in the frame of ``a``."""
+    return se2_compose(se2_inverse(a), b)
+
+
+def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
+    """Map (N, 2) points through the planar pose ``[x, y, yaw]`` (child frame -> parent frame)."""
+    points_xy = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    R = np.array([[c, -s], [s, c]])
+    return points_xy @ R.T + np.asarray(pose[:2], dtype=float)
+
+
+def interpolate_se2(
+    stamps_s: np.ndarray, poses: np.ndarray, query_s: np.ndarray | float
+) -> np.ndarray:
+    """Linearly interpolate (N, 3) poses sampled at sorted ``stamps_s`` (yaw on the circle).
+
+    Queries outside the sampled span are clamped to the end poses.
+    """
+    stamps_s = np.asarray(stamps_s, dtype=float)
+    poses = np.asarray(poses, dtype=float)
+    query = np.atleast_1d(np.asarray(query_s, dtype=float))
+    x = np.interp(query, stamps_s, poses[:, 0])
+    y = np.interp(query, stamps_s, poses[:, 1])
+    yaw_unwrapped = np.unwrap(poses[:, 2])
+    yaw = wrap_angle(np.interp(query, stamps_s, yaw_unwrapped))
+    out = np.stack([x, y, yaw], axis=-1)
+    return out if np.ndim(query_s) else out[0]
+
+
+# ---------------------------------------------------------------- SE(3) and quaternions
+
+
+def quat_wxyz_from_xyzw(q_xyzw: np.ndarray) -> np.ndarray:
+    """Reorder a quaternion from ROS/scipy ``xyzw`` to smokyslam ``wxyz``."""
+    q = np.asarray(q_xyzw, dtype=float)
+    return np.concatenate([q[..., 3:4], q[..., 0:3]], axis=-1)
+
+
+def quat_xyzw_from_wxyz(q_wxyz: np.ndarray) -> np.ndarray:
+    """Reorder a quaternion from smokyslam ``wxyz`` to ROS/scipy ``xyzw``."""
+    q = np.asarray(q_wxyz, dtype=float)
+    return np.concatenate([q[..., 1:4], q[..., 0:1]], axis=-1)
+
+
+def quat_wxyz_from_yaw(yaw_rad: np.ndarray | float) -> np.ndarray:
+    """Quaternion ``wxyz`` of a rotation about +z; broadcasts."""
+    half = 0.5 * np.asarray(yaw_rad, dtype=float)
+    zeros = np.zeros_like(half)
+    return np.stack([np.cos(half), zeros, zeros, np.sin(half)], axis=-1)
+
+
+def yaw_from_quat_wxyz(q_wxyz: np.ndarray) -> np.ndarray | float:
+    """Yaw (rotation about +z, ZYX convention) of quaternions ``wxyz``; broadcasts."""
+    q = np.asarray(q_wxyz, dtype=float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def rotation_matrix_from_quat_wxyz(q_wxyz: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation matrix of a quaternion ``wxyz``."""
+    return Rotation.from_quat(quat_xyzw_from_wxyz(q_wxyz)).as_matrix()
+
+
+def quat_wxyz_from_rotation_matrix(R: np.ndarray) -> np.ndarray:
+    """Quaternion ``wxyz`` (w >= 0) of a (3, 3) rotation matrix."""
+    q = quat_wxyz_from_xyzw(Rotation.from_matrix(R).as_quat())
+    return q if q[0] >= 0 else -q
+
+
+def se3_matrix(translation_m: np.ndarray, q_wxyz: np.ndarray) -> np.ndarray:
+    """(4, 4) transform from a translation and a quaternion ``wxyz``."""
+    T = np.eye(4)
+    T[:3, :3] = rotation_matrix_from_quat_wxyz(q_wxyz)
+    T[:3, 3] = np.asarray(translation_m, dtype=float)
+    return T
+
+
+def se3_from_se2(pose: np.ndarray, z_m: float = 0.0) -> np.ndarray:
+    """(4, 4) transform of a planar pose ``[x, y, yaw]`` lifted to height ``z_m``."""
+    T = np.eye(4)
+    T[:2, :2] = se2_matrix(*pose)[:2, :2]
+    T[:3, 3] = [pose[0], pose[1], z_m]
+    return T
+
+
+def se3_inverse(T: np.ndarray) -> np.ndarray:
+    """Inverse of a (4, 4) rigid transform."""
+    Ti = np.eye(4)
+    R = T[:3, :3]
+    Ti[:3, :3] = R.T
+    Ti[:3, 3] = -R.T @ T[:3, 3]
+    return Ti
+
+
+# Optical camera axes (z forward, x right, y down) expressed in a body frame (x fwd, y left, z up).
+R_BODY_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+# ---------------------------------------------------------------- grids
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """Geometry of a 2D grid: ``shape = (rows_y, cols_x)``, square cells of ``resolution_m``.
+
+    ``origin_xy_m`` is the world position of the lower-left corner of cell ``[0, 0]``.
+    """
+
+    origin_xy_m: tuple[float, float]
+    resolution_m: float
+    shape: tuple[int, int]
+
+    def cells_of(self, points_xy: np.ndarray) -> np.ndarray:
+        """(N, 2) integer cell indices ``[ix, iy]`` of (N, 2) world points (may be out of bounds)."""
+        p = (np.asarray(points_xy, dtype=float) - np.asarray(self.origin_xy_m)) / self.resolution_m
+        return np.floor(p).astype(np.int64)
+
+    def centres_of(self, cells_ixy: np.ndarray) -> np.ndarray:
+        """(N, 2) world positions of the centres of cells ``[ix, iy]``."""
+        c = (np.asarray(cells_ixy, dtype=float) + 0.5) * self.resolution_m
+        return c + np.asarray(self.origin_xy_m)
+
+    def inside(self, cells_ixy: np.ndarray) -> np.ndarray:
+        """(N,) bool: which cells ``[ix, iy]`` lie inside the grid."""
+        c = np.asarray(cells_ixy)
+        return (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < self.shape[1]) & (c[:, 1] < self.shape[0])
+
+    @property
+    def extent_m(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` of the grid in the world."""
+        x0, y0 = self.origin_xy_m
+        return (
+            x0,
+            x0 + self.shape[1] * self.resolution_m,
+            y0,
+            y0 + self.shape[0] * self.resolution_m,
+        )

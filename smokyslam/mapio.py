@@ -1,0 +1,139 @@
+"""Occupancy maps on disk in ROS map_server format: a PGM image plus a YAML description.
+
+The YAML holds ``image``, ``resolution``, ``origin`` ([x, y, yaw] of the lower-left pixel),
+``negate``, ``occupied_thresh``, ``free_thresh`` and ``mode: trinary``. Image row 0 is the top
+of the map, so rows are flipped against smokyslam's ``[iy, ix]`` arrays (iy grows northwards).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from smokyslam.errors import MapFileError
+from smokyslam.geometry import GridSpec
+
+OCCUPIED, FREE, UNKNOWN = 100, 0, -1
+_PIXEL_OCCUPIED, _PIXEL_FREE, _PIXEL_UNKNOWN = 0, 254, 205
+
+
+@dataclass
+class MapImage:
+    """A trinary map: cells[iy, ix] int8 with 100 occupied, 0 free, -1 unknown."""
+
+    cells: np.ndarray
+    spec: GridSpec
+
+    def as_probability(self) -> np.ndarray:
+        """(rows, cols) float: occupied 1.0, free 0.0, unknown 0.5 (the error index's values)."""
+        prob = np.full(self.cells.shape, 0.5)
+        prob[self.cells == OCCUPIED] = 1.0
+        prob[self.cells == FREE] = 0.0
+        return prob
+
+
+def trinary_from_probability(
+    prob: np.ndarray, occupied_thresh: float = 0.65, free_thresh: float = 0.196
+) -> np.ndarray:
+    """Cells int8 (100/0/-1) from occupancy probabilities; NaN counts as unknown."""
+    cells = np.full(prob.shape, UNKNOWN, dtype=np.int8)
+    cells[prob > occupied_thresh] = OCCUPIED
+    cells[prob < free_thresh] = FREE
+    return cells
+
+
+def save_map(
+    yaml_path: Path | str,
+    cells: np.ndarray,
+    spec: GridSpec,
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+    preview_png: bool = True,
+) -> Path:
+    """Write ``NAME.pgm`` + ``NAME.yaml`` (and ``NAME.png`` when asked); returns the YAML path."""
+    yaml_path = Path(yaml_path)
+    yaml_path.parent.mkdir(parents=True, exist_ok=True)
+    cells = np.asarray(cells)
+    pixels = np.full(cells.shape, _PIXEL_UNKNOWN, dtype=np.uint8)
+    pixels[cells == OCCUPIED] = _PIXEL_OCCUPIED
+    pixels[cells == FREE] = _PIXEL_FREE
+    pixels = np.flipud(pixels)
+    pgm_path = yaml_path.with_suffix(".pgm")
+    if not cv2.imwrite(str(pgm_path), pixels):
+        raise MapFileError(f"could not write map image {pgm_path}")
+    if preview_png:
+        cv2.imwrite(str(yaml_path.with_suffix(".png")), pixels)
+    description = {
+        "image": pgm_path.name,
+        "resolution": float(spec.resolution_m),
+        "origin": [float(spec.origin_xy_m[0]), float(spec.origin_xy_m[1]), 0.0],
+        "negate": 0,
+        "occupied_thresh": float(occupied_thresh),
+        "free_thresh": float(free_thresh),
+        "mode": "trinary",
+    }
+    yaml_path.write_text(yaml.safe_dump(description, sort_keys=False))
+    return yaml_path
+
+
+def _read_description(yaml_path: Path) -> dict:
+    if not yaml_path.is_file():
+        raise MapFileError(f"map file not found: {yaml_path}")
+    try:
+        description = yaml.safe_load(yaml_path.read_text())
+    except yaml.YAMLError as exc:
+        raise MapFileError(f"{yaml_path}: not valid YAML ({exc.__class__.__name__})") from exc
+    if not isinstance(description, dict):
+        raise MapFileError(f"{yaml_path}: not a map_server map description")
+    for key in ("image", "resolution", "origin"):
+        if key not in description:
+            raise MapFileError(f"{yaml_path}: missing key '{key}'")
+    resolution = description["resolution"]
+    if not isinstance(resolution, int | float) or not resolution > 0:
+        raise MapFileError(f"{yaml_path}: resolution must be a positive number, got {resolution!r}")
+    origin = description["origin"]
+    if not isinstance(origin, list) or len(origin) < 2:
+        raise MapFileError(f"{yaml_path}: origin must be [x, y, yaw], got {origin!r}")
+    if len(origin) > 2 and origin[2] not in (0, 0.0):
+        raise MapFileError(f"{yaml_path}: rotated map origins (yaw != 0) are not supported")
+    return description
+
+
+def load_map(yaml_path: Path | str) -> MapImage:
+    """Read a map_server map (PGM or PNG image) as trinary cells.
+
+    Pixels are interpreted as map_server does: p = (255 - v) / 255 (or v / 255 when negated);
+    p > occupied_thresh is occupied, p < free_thresh is free, the rest unknown.
+    """
+    yaml_path = Path(yaml_path)
+    description = _read_description(yaml_path)
+    image_path = yaml_path.parent / str(description["image"])
+    if not image_path.is_file():
+        raise MapFileError(f"{yaml_path}: map image not found: {image_path}")
+    pixels = cv2.imread(str(image_path), cv2.IMREAD_UNCHANGED)
+    if pixels is None:
+        raise MapFileError(f"{image_path}: not a readable PGM/PNG image")
+    if pixels.ndim == 3:
+        alpha = pixels[..., 3] if pixels.shape[2] == 4 else None
+        pixels = pixels[..., :3].mean(axis=2)
+        if alpha is not None:
+            pixels = np.where(alpha == 0, _PIXEL_UNKNOWN, pixels)
+    scale = 65535.0 if pixels.dtype == np.uint16 else 255.0
+    value = pixels.astype(float) / scale
+    prob = value if int(description.get("negate", 0)) else 1.0 - value
+    cells = trinary_from_probability(
+        np.flipud(prob),
+        float(description.get("occupied_thresh", 0.65)),
+        float(description.get("free_thresh", 0.196)),
+    )
+    origin = description["origin"]
+    spec = GridSpec(
+        origin_xy_m=(float(origin[0]), float(origin[1])),
+        resolution_m=float(description["resolution"]),
+        shape=cells.shape,
+    )
+    return MapImage(cells=cells, spec=spec)

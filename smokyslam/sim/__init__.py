@@ -1,0 +1,1 @@
+"""Simulated smoky buildings: worlds, walking paths, and radar/camera/IMU sensor models."""

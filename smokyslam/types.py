@@ -1,0 +1,109 @@
+"""Typed frames that flow between stages: reader -> smoke -> frontends -> backend -> mappers.
+
+Every array states its shape, dtype, unit and frame. Frames are plain dataclasses (no I/O).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from smokyslam.geometry import GridSpec
+
+
+@dataclass
+class RadarScan:
+    """One radar frame.
+
+    points_xyz_m: (N, 3) float64, metres, radar frame (x forward, y left, z up).
+    intensity: (N,) float64, sensor units (dB-like for TI).
+    doppler_mps: (N,) float64, radial velocity, positive moving away from the sensor.
+    """
+
+    stamp_s: float
+    points_xyz_m: np.ndarray
+    intensity: np.ndarray
+    doppler_mps: np.ndarray
+    frame_id: str = "radar"
+
+    def __len__(self) -> int:
+        return int(self.points_xyz_m.shape[0])
+
+    @property
+    def points_xy_m(self) -> np.ndarray:
+        """(N, 2) planar points, radar frame."""
+        return self.points_xyz_m[:, :2]
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics in pixels (no distortion)."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:
+        """(3, 3) camera matrix."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+
+@dataclass
+class CameraFrame:
+    """One camera image.
+
+    image: (H, W) uint8 mono.
+    depth_m: (H, W) float32 metres along the optical axis, or None when the log has no depth.
+    """
+
+    stamp_s: float
+    image: np.ndarray
+    intrinsics: CameraIntrinsics | None = None
+    depth_m: np.ndarray | None = None
+    frame_id: str = "camera"
+
+
+@dataclass
+class ImuSample:
+    """One IMU sample in the IMU/body frame.
+
+    gyro_radps: (3,) angular rate, rad/s. accel_mps2: (3,) specific force, m/s^2.
+    """
+
+    stamp_s: float
+    gyro_radps: np.ndarray
+    accel_mps2: np.ndarray
+
+
+@dataclass
+class GroundTruthPose:
+    """Ground-truth planar pose of ``base_link`` in the world: ``T_world_base`` as [x, y, yaw]."""
+
+    stamp_s: float
+    pose_world_base: np.ndarray
+
+
+@dataclass
+class GroundTruthMap:
+    """Ground-truth occupancy grid: cells[iy, ix] int8 with 100 occupied, 0 free, -1 unknown."""
+
+    stamp_s: float
+    cells: np.ndarray
+    spec: GridSpec
+
+
+@dataclass
+class Extrinsics:
+    """Sensor mounting on the rig: ``T_base_radar`` and ``T_base_camera``, (4, 4) each."""
+
+    T_base_radar: np.ndarray = field(default_factory=lambda: np.eye(4))
+    T_base_camera: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+
+Frame = RadarScan | CameraFrame | ImuSample | GroundTruthPose | GroundTruthMap
+"""Anything a log reader yields."""
