@@ -36,9 +36,7 @@ CameraNoiseOption = Annotated[
     float | None,
     typer.Option("--camera-noise", min=0.0, max=1.0, help="Salt-and-pepper pixel fraction."),
 ]
-HazeOption = Annotated[
-    float | None, typer.Option("--haze", min=0.0, help="Haze density B in 1/m.")
-]
+HazeOption = Annotated[float | None, typer.Option("--haze", min=0.0, help="Haze density B in 1/m.")]
 
 
 def _version_callback(value: bool) -> None:
@@ -51,7 +49,9 @@ def _version_callback(value: bool) -> None:
 def _root(
     version: Annotated[
         bool,
-        typer.Option("--version", callback=_version_callback, is_eager=True, help="Show the version."),
+        typer.Option(
+            "--version", callback=_version_callback, is_eager=True, help="Show the version."
+        ),
     ] = False,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
 ) -> None:
@@ -70,7 +70,11 @@ def effective_config(
     """Defaults <- YAML file <- smoke options given on the command line."""
     smoke = {
         key: value
-        for key, value in (("radar_loss", radar_loss), ("camera_noise", camera_noise), ("haze", haze))
+        for key, value in (
+            ("radar_loss", radar_loss),
+            ("camera_noise", camera_noise),
+            ("haze", haze),
+        )
         if value is not None
     }
     return load_config(config_path, {"smoke": smoke} if smoke else None)

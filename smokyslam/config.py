@@ -144,7 +144,9 @@ def _format_validation_error(error: ValidationError, source: str) -> str:
     return f"{source}: invalid value for '{where}': {first['msg']}"
 
 
-def load_config(path: Path | str | None = None, overrides: dict[str, Any] | None = None) -> SmokySlamConfig:
+def load_config(
+    path: Path | str | None = None, overrides: dict[str, Any] | None = None
+) -> SmokySlamConfig:
     """Build the effective config: defaults, then a YAML file, then ``overrides`` (nested dict).
 
     Raises ConfigError on a missing file, bad YAML, an unknown key or an invalid value.

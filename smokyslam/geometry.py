@@ -38,7 +38,7 @@ def se2_matrix(x_m: float, y_m: float, yaw_rad: float) -> np.ndarray:
 
 
 def se2_from_matrix(T: np.ndarray) -> np.ndarray:
-    """Planar pose ``[x_m, y_m, yaw_rad]`` of a (3, 3) or (4, 4) transform (z, roll, pitch dropped)."""
+    """Planar pose ``[x_m, y_m, yaw_rad]`` of a (3, 3) or (4, 4) transform (z, tilt dropped)."""
     T = np.asarray(T, dtype=float)
     t = T[:2, -1]
     return np.array([t[0], t[1], np.arctan2(T[1, 0], T[0, 0])])
@@ -178,7 +178,7 @@ class GridSpec:
     shape: tuple[int, int]
 
     def cells_of(self, points_xy: np.ndarray) -> np.ndarray:
-        """(N, 2) integer cell indices ``[ix, iy]`` of (N, 2) world points (may be out of bounds)."""
+        """(N, 2) integer cells ``[ix, iy]`` of (N, 2) world points (may be out of bounds)."""
         p = (np.asarray(points_xy, dtype=float) - np.asarray(self.origin_xy_m)) / self.resolution_m
         return np.floor(p).astype(np.int64)
 
@@ -190,7 +190,9 @@ class GridSpec:
     def inside(self, cells_ixy: np.ndarray) -> np.ndarray:
         """(N,) bool: which cells ``[ix, iy]`` lie inside the grid."""
         c = np.asarray(cells_ixy)
-        return (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < self.shape[1]) & (c[:, 1] < self.shape[0])
+        return (
+            (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < self.shape[1]) & (c[:, 1] < self.shape[0])
+        )
 
     @property
     def extent_m(self) -> tuple[float, float, float, float]:

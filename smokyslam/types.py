@@ -48,7 +48,7 @@ class CameraIntrinsics:
     cy: float
 
     @property
-    def K(self) -> np.ndarray:
+    def camera_matrix(self) -> np.ndarray:
         """(3, 3) camera matrix."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 

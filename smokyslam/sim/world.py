@@ -45,11 +45,13 @@ class World:
 
 def box_world(width_m: float = 8.0, depth_m: float = 6.0, resolution_m: float = 0.1) -> World:
     """A single empty rectangular room with one-cell walls: the smallest world, for tests."""
-    cols = int(round(width_m / resolution_m)) + 2
-    rows = int(round(depth_m / resolution_m)) + 2
+    cols = round(width_m / resolution_m) + 2
+    rows = round(depth_m / resolution_m) + 2
     occupied = np.zeros((rows, cols), dtype=bool)
     occupied[[0, -1], :] = True
     occupied[:, [0, -1]] = True
-    spec = GridSpec(origin_xy_m=(-resolution_m, -resolution_m), resolution_m=resolution_m, shape=(rows, cols))
+    spec = GridSpec(
+        origin_xy_m=(-resolution_m, -resolution_m), resolution_m=resolution_m, shape=(rows, cols)
+    )
     start = np.array([width_m / 2.0, depth_m / 2.0, 0.0])
     return World("box", occupied, np.ones_like(occupied), spec, start_pose=start)

@@ -1,0 +1,61 @@
+"""The contract every log reader keeps, and the summary it reports.
+
+Readers turn a file into time-ordered typed frames (``smokyslam.types``). They are picked by
+an explicit registry (``frontends.readers.registry``), never by probing attributes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+from smokyslam.types import CameraIntrinsics, Extrinsics, Frame, GroundTruthMap
+
+
+@dataclass
+class StreamSummary:
+    """One topic (or stream) of a log."""
+
+    topic: str
+    msgtype: str
+    count: int
+    rate_hz: float
+
+
+@dataclass
+class LogSummary:
+    """What ``smokyslam info`` prints."""
+
+    path: Path
+    format: str
+    duration_s: float
+    start_s: float
+    streams: list[StreamSummary] = field(default_factory=list)
+
+
+class LogReader(Protocol):
+    """A sensor log opened for replay."""
+
+    path: Path
+
+    def summary(self) -> LogSummary:
+        """Per-topic type, count and rate, and the log's duration."""
+        ...
+
+    def frames(self) -> Iterator[Frame]:
+        """Every radar/camera/IMU/ground-truth frame, in time order, each decoded once."""
+        ...
+
+    def ground_truth_map(self) -> GroundTruthMap | None:
+        """The ground-truth occupancy grid, when the log has one."""
+        ...
+
+    def extrinsics(self) -> Extrinsics:
+        """Sensor mounting (``T_base_radar``, ``T_base_camera``); identity when unknown."""
+        ...
+
+    def camera_intrinsics(self) -> CameraIntrinsics | None:
+        """Camera intrinsics, when the log has a camera."""
+        ...
