@@ -15,7 +15,7 @@ import typer
 
 from smokyslam import __version__
 from smokyslam.config import SmokySlamConfig, config_to_yaml, load_config
-from smokyslam.errors import SmokySlamError
+from smokyslam.errors import ConfigError, SmokySlamError
 
 app = typer.Typer(
     name="smokyslam",
@@ -84,6 +84,50 @@ def effective_config(
 def dump_config(config: ConfigOption = None) -> None:
     """Print the effective configuration as YAML."""
     typer.echo(config_to_yaml(effective_config(config)), nl=False)
+
+
+@app.command()
+def simulate(
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Log to write: .mcap (ROS2) or .bag (ROS1).")
+    ],
+    world: Annotated[
+        str, typer.Option(help="office, warehouse, corridor, or a map_server floor-plan YAML.")
+    ] = "office",
+    duration: Annotated[float, typer.Option(min=1.0, help="Seconds of walking.")] = 60.0,
+    seed: Annotated[int, typer.Option(help="Seed for the world, the walk and the sensors.")] = 0,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing log.")] = False,
+    config: ConfigOption = None,
+) -> None:
+    """Simulate a walk through a building and record radar, camera, IMU and ground truth."""
+    if out.suffix not in (".mcap", ".bag"):
+        raise ConfigError(f"--out must end in .mcap or .bag, got '{out.name}'")
+    cfg = effective_config(config)
+    from smokyslam.progress import progress_bar
+    from smokyslam.sim.simulate import simulate as run_simulation
+
+    with progress_bar(f"simulating {world}", duration) as update:
+        result = run_simulation(
+            world, duration, seed, out, cfg, overwrite=overwrite, on_progress=update
+        )
+    typer.echo(
+        f"wrote {result.log_path}: {result.duration_s:.0f} s of {result.world.name}, "
+        f"path {result.trajectory.path_length_m:.1f} m, {result.radar_frames} radar frames "
+        f"({result.radar_points_per_frame:.0f} points each), {result.camera_frames} images, "
+        f"in {result.wall_s:.1f} s ({result.realtime_factor:.1f}x real time)"
+    )
+
+
+@app.command()
+def info(
+    log: Annotated[Path, typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz).")],
+    config: ConfigOption = None,
+) -> None:
+    """Print each topic of a log: type, message count, rate, and the log's duration."""
+    from smokyslam.frontends.readers.registry import open_log
+    from smokyslam.loginfo import format_summary
+
+    typer.echo(format_summary(open_log(log, effective_config(config)).summary()))
 
 
 def main() -> None:

@@ -1,0 +1,74 @@
+"""The geometry module: every frame and quaternion conversion goes through here."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from smokyslam import geometry as g
+
+poses = st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-np.pi, np.pi - 1e-9)).map(
+    np.array
+)
+
+
+@given(poses, poses)
+def test_se2_compose_matches_matrices(a, b):
+    expected = g.se2_from_matrix(g.se2_matrix(*a) @ g.se2_matrix(*b))
+    np.testing.assert_allclose(g.se2_compose(a, b), expected, atol=1e-9)
+
+
+@given(poses)
+def test_se2_inverse_composes_to_identity(a):
+    np.testing.assert_allclose(g.se2_compose(a, g.se2_inverse(a)), [0, 0, 0], atol=1e-9)
+
+
+def test_se2_between_is_relative_pose():
+    a = np.array([1.0, 2.0, np.pi / 2])
+    b = np.array([1.0, 3.0, np.pi])
+    # b sits 1 m ahead of a (a faces +y) and is turned 90 degrees left.
+    np.testing.assert_allclose(g.se2_between(a, b), [1.0, 0.0, np.pi / 2], atol=1e-12)
+
+
+def test_transform_points_2d_rotates_then_translates():
+    pose = np.array([10.0, 0.0, np.pi / 2])
+    out = g.transform_points_2d(pose, np.array([[1.0, 0.0], [0.0, 2.0]]))
+    np.testing.assert_allclose(out, [[10.0, 1.0], [8.0, 0.0]], atol=1e-12)
+
+
+def test_quaternion_order_round_trip_and_yaw():
+    q_wxyz = g.quat_wxyz_from_yaw(0.7)
+    np.testing.assert_allclose(g.quat_xyzw_from_wxyz(q_wxyz), [0, 0, np.sin(0.35), np.cos(0.35)])
+    np.testing.assert_allclose(g.quat_wxyz_from_xyzw(g.quat_xyzw_from_wxyz(q_wxyz)), q_wxyz)
+    assert g.yaw_from_quat_wxyz(q_wxyz) == pytest.approx(0.7)
+    R = g.rotation_matrix_from_quat_wxyz(q_wxyz)
+    np.testing.assert_allclose(R[:2, :2], g.se2_matrix(0, 0, 0.7)[:2, :2], atol=1e-12)
+    np.testing.assert_allclose(g.quat_wxyz_from_rotation_matrix(R), q_wxyz, atol=1e-12)
+
+
+def test_interpolate_se2_takes_short_way_round_the_circle():
+    stamps = np.array([0.0, 1.0])
+    poses = np.array([[0.0, 0.0, np.pi - 0.1], [2.0, 0.0, -np.pi + 0.1]])
+    mid = g.interpolate_se2(stamps, poses, 0.5)
+    assert mid[0] == pytest.approx(1.0)
+    assert abs(g.wrap_angle(mid[2] - np.pi)) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_optical_rotation_maps_camera_forward_to_body_forward():
+    np.testing.assert_allclose(g.R_BODY_OPTICAL @ [0, 0, 1], [1, 0, 0])  # z fwd -> x fwd
+    np.testing.assert_allclose(g.R_BODY_OPTICAL @ [1, 0, 0], [0, -1, 0])  # x right -> -y (right)
+    np.testing.assert_allclose(g.R_BODY_OPTICAL @ [0, 1, 0], [0, 0, -1])  # y down -> -z
+
+
+def test_se3_inverse():
+    T = g.se3_matrix([1.0, 2.0, 3.0], g.quat_wxyz_from_yaw(0.3))
+    np.testing.assert_allclose(g.se3_inverse(T) @ T, np.eye(4), atol=1e-12)
+
+
+def test_grid_spec_cells_and_centres_round_trip():
+    spec = g.GridSpec(origin_xy_m=(-1.0, 2.0), resolution_m=0.1, shape=(30, 40))
+    cells = spec.cells_of(np.array([[-1.0, 2.0], [-0.95, 2.05], [2.99, 4.99], [3.0, 5.0]]))
+    np.testing.assert_array_equal(cells, [[0, 0], [0, 0], [39, 29], [40, 30]])
+    np.testing.assert_array_equal(spec.inside(cells), [True, True, True, False])
+    np.testing.assert_allclose(spec.centres_of(np.array([[0, 0]])), [[-0.95, 2.05]])
+    assert spec.extent_m == pytest.approx((-1.0, 3.0, 2.0, 5.0))
