@@ -1,0 +1,266 @@
+"""ROS1 bags and ROS2 logs (MCAP or sqlite3, bare file or rosbag2 folder) via rosbags.
+
+Streams and topics: every stream of ``TopicsConfig`` lists candidate topics; the first one
+present in the log with the expected message type is used.
+
+Time: every frame is stamped with its message's log (receive) time minus the log's first
+message time, so ``stamp_s`` starts at 0. Header stamps are not used for time because real
+logs mix clocks (the TI radar driver leaves them at 0; the IMU of the demo bag runs 4 days off
+the bag clock). smokyslam's own logs write header stamp = log time, so nothing is lost.
+
+Camera: images carry the intrinsics of the latest ``CameraInfo`` (the first one in the log
+before any arrives). When the log has a depth topic, each image waits (up to
+``DEPTH_WAIT_S`` of log time) for the depth image with the same header stamp (within
+``DEPTH_MATCH_S``); frames behind a waiting image are held back so the output stays in time
+order. Messages are decoded one at a time as the log is read.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.rosbag1 import ReaderError as ReaderError1
+from rosbags.rosbag2 import ReaderError as ReaderError2
+
+from smokyslam.config import TopicsConfig
+from smokyslam.errors import LogError, MessageError, TopicError
+from smokyslam.frontends.readers.base import LogSummary, StreamSummary
+from smokyslam.rosmsg import (
+    STREAM_MSGTYPES,
+    depth_from_msg,
+    extrinsics_from_tf,
+    ground_truth_map_from_msg,
+    ground_truth_pose_from_msg,
+    header_stamp_ns,
+    image_from_msg,
+    imu_from_msg,
+    intrinsics_from_camera_info,
+    radar_scan_from_pointcloud2,
+    typestore_for,
+)
+from smokyslam.types import CameraFrame, CameraIntrinsics, Extrinsics, Frame, GroundTruthMap
+
+logger = logging.getLogger(__name__)
+
+DEPTH_WAIT_S = 0.1
+"""Log time an image waits for its depth image before it is released without depth."""
+DEPTH_MATCH_S = 0.001
+"""Largest header-stamp difference between an image and the depth image paired with it."""
+
+_READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
+_NS = 1e-9
+
+
+def _format_of(path: Path) -> str:
+    if path.is_dir():
+        return "ROS2 folder"
+    return {".bag": "ROS1 bag", ".mcap": "ROS2 MCAP", ".db3": "ROS2 sqlite3"}.get(
+        path.suffix.lower(), "rosbag"
+    )
+
+
+class RosbagReader:
+    """A ROS1/ROS2 log opened for replay (see the module docstring for time and pairing)."""
+
+    def __init__(self, path: Path | str, topics: TopicsConfig) -> None:
+        self.path = Path(path)
+        self.topics = topics
+        self.format = _format_of(self.path)
+        with self._open() as reader:
+            self._log_types = {name: info.msgtype or "?" for name, info in reader.topics.items()}
+        self.stream_topics = self._resolve_streams()
+        self.dropped_points = 0
+        self._intrinsics: CameraIntrinsics | None = None
+        self._intrinsics_read = False
+
+    # ------------------------------------------------------------ opening and topics
+
+    @contextmanager
+    def _open(self) -> Iterator[AnyReader]:
+        """An open AnyReader; rosbags' errors become one-line LogErrors."""
+        default_store = typestore_for(ros1=self.path.suffix.lower() == ".bag")
+        try:
+            with AnyReader([self.path], default_typestore=default_store) as reader:
+                yield reader
+        except _READ_ERRORS as exc:
+            raise LogError(
+                f"{self.path}: cannot read {self.format}, truncated or corrupt ({exc})"
+            ) from None
+        except FileNotFoundError:
+            raise LogError(f"log not found: {self.path}") from None
+
+    def _resolve_streams(self) -> dict[str, str]:
+        streams = {}
+        for stream, msgtype in STREAM_MSGTYPES.items():
+            for topic in getattr(self.topics, stream):
+                if self._log_types.get(topic) == msgtype:
+                    streams[stream] = topic
+                    break
+                if topic in self._log_types:
+                    logger.warning(
+                        "%s: topic %s has type %s, not %s; skipped for %s",
+                        self.path,
+                        topic,
+                        self._log_types[topic],
+                        msgtype,
+                        stream,
+                    )
+        return streams
+
+    def require(self, *streams: str) -> None:
+        """Raise TopicError unless the log holds every named stream (``TopicsConfig`` names)."""
+        for stream in streams:
+            if stream not in STREAM_MSGTYPES:
+                raise TopicError(f"unknown stream '{stream}' (one of {', '.join(STREAM_MSGTYPES)})")
+            if stream in self.stream_topics:
+                continue
+            wanted = ", ".join(getattr(self.topics, stream)) or "none configured"
+            have = ", ".join(f"{t} ({m})" for t, m in sorted(self._log_types.items())) or "none"
+            raise TopicError(
+                f"{self.path}: no {stream} topic of type {STREAM_MSGTYPES[stream]} "
+                f"(looked for: {wanted}; log has: {have})"
+            )
+
+    def _messages(self, *streams: str) -> Iterator[tuple[str, float, Any]]:
+        """(stream, stamp_s from log start, decoded message) of the named streams, in order."""
+        by_topic = {self.stream_topics[s]: s for s in streams if s in self.stream_topics}
+        if not by_topic:
+            return
+        with self._open() as reader:
+            start_ns = reader.start_time
+            wanted = [c for c in reader.connections if c.topic in by_topic]
+            for connection, log_ns, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, connection.msgtype)
+                yield by_topic[connection.topic], (log_ns - start_ns) * _NS, msg
+
+    # ------------------------------------------------------------ LogReader protocol
+
+    def summary(self) -> LogSummary:
+        """Every topic with its type, count and rate (from its own first/last log time)."""
+        with self._open() as reader:
+            start_ns = reader.start_time if reader.message_count else 0
+            spans: dict[str, list[int]] = {}
+            for connection, log_ns, _ in reader.messages():
+                span = spans.setdefault(connection.topic, [log_ns, log_ns, 0])
+                span[1], span[2] = log_ns, span[2] + 1
+            streams = []
+            for topic, info in sorted(reader.topics.items()):
+                first, last, count = spans.get(topic, [0, 0, 0])
+                rate_hz = (count - 1) / ((last - first) * _NS) if last > first else 0.0
+                streams.append(StreamSummary(topic, info.msgtype or "?", count, rate_hz))
+            last_ns = max((span[1] for span in spans.values()), default=start_ns)
+        return LogSummary(
+            path=self.path,
+            format=self.format,
+            duration_s=(last_ns - start_ns) * _NS,
+            start_s=start_ns * _NS,
+            streams=streams,
+        )
+
+    def camera_intrinsics(self) -> CameraIntrinsics | None:
+        """Intrinsics of the first CameraInfo message, or None without a camera_info topic."""
+        if not self._intrinsics_read:
+            self._intrinsics_read = True
+            for _, _, msg in self._messages("camera_info"):
+                self._intrinsics = intrinsics_from_camera_info(msg)
+                break
+        return self._intrinsics
+
+    def extrinsics(self) -> Extrinsics:
+        """Sensor mounting rebuilt from /tf_static; identity for frames it does not hold."""
+        transforms = [t for _, _, msg in self._messages("tf_static") for t in msg.transforms]
+        if not transforms:
+            logger.info("%s: no static transforms; sensors taken at base_link", self.path)
+        return extrinsics_from_tf(transforms)
+
+    def ground_truth_map(self) -> GroundTruthMap | None:
+        """The last ground-truth OccupancyGrid in the log, or None."""
+        latest = None
+        for _, stamp_s, msg in self._messages("ground_truth_map"):
+            latest = (stamp_s, msg)
+        return None if latest is None else ground_truth_map_from_msg(latest[1], latest[0])
+
+    def frames(self) -> Iterator[Frame]:
+        """Radar, camera (with intrinsics and paired depth), IMU and ground-truth frames."""
+        assembler = _FrameAssembler(self.camera_intrinsics(), "camera_depth" in self.stream_topics)
+        dropped_before = self.dropped_points
+        streams = [s for s in STREAM_MSGTYPES if s != "tf_static"]
+        for stream, stamp_s, msg in self._messages(*streams):
+            try:
+                self._dispatch(assembler, stream, stamp_s, msg)
+            except MessageError as exc:
+                topic = self.stream_topics[stream]
+                raise MessageError(f"{self.path}: {topic} at {stamp_s:.3f} s: {exc}") from None
+            yield from assembler.release(stamp_s)
+        yield from assembler.release(float("inf"))
+        if dropped := self.dropped_points - dropped_before:
+            logger.warning("%s: dropped %d radar points with NaN/inf values", self.path, dropped)
+
+    def _dispatch(self, assembler: _FrameAssembler, stream: str, stamp_s: float, msg: Any) -> None:
+        if stream == "radar":
+            scan, dropped = radar_scan_from_pointcloud2(msg, stamp_s)
+            self.dropped_points += dropped
+            assembler.push(scan)
+        elif stream == "camera_info":
+            assembler.intrinsics = intrinsics_from_camera_info(msg)
+        elif stream == "camera_image":
+            assembler.push_image(msg, stamp_s)
+        elif stream == "camera_depth":
+            assembler.push_depth(msg, stamp_s)
+        elif stream == "imu":
+            assembler.push(imu_from_msg(msg, stamp_s))
+        elif stream == "ground_truth_pose":
+            assembler.push(ground_truth_pose_from_msg(msg, stamp_s))
+        else:
+            assembler.push(ground_truth_map_from_msg(msg, stamp_s))
+
+
+class _FrameAssembler:
+    """Keeps frames in log order while camera images wait for their depth images."""
+
+    def __init__(self, intrinsics: CameraIntrinsics | None, has_depth: bool) -> None:
+        self.intrinsics = intrinsics
+        self.has_depth = has_depth
+        self._queue: deque[Frame] = deque()
+        # id(frame) -> (frame, header stamp ns, release time s) of images waiting for depth
+        self._waiting: dict[int, tuple[CameraFrame, int, float]] = {}
+        self._early_depths: list[tuple[int, float, Any]] = []
+
+    def push(self, frame: Frame) -> None:
+        self._queue.append(frame)
+
+    def push_image(self, msg: Any, stamp_s: float) -> None:
+        frame = CameraFrame(stamp_s=stamp_s, image=image_from_msg(msg), intrinsics=self.intrinsics)
+        key = header_stamp_ns(msg) or round(stamp_s * 1e9)
+        self._queue.append(frame)
+        for i, (depth_key, _, depth_msg) in enumerate(self._early_depths):
+            if abs(depth_key - key) <= DEPTH_MATCH_S * 1e9:
+                frame.depth_m = depth_from_msg(depth_msg, frame.image.shape)
+                del self._early_depths[i]
+                return
+        if self.has_depth:
+            self._waiting[id(frame)] = (frame, key, stamp_s + DEPTH_WAIT_S)
+
+    def push_depth(self, msg: Any, stamp_s: float) -> None:
+        key = header_stamp_ns(msg) or round(stamp_s * 1e9)
+        for frame_id, (frame, image_key, _) in self._waiting.items():
+            if abs(image_key - key) <= DEPTH_MATCH_S * 1e9:
+                frame.depth_m = depth_from_msg(msg, frame.image.shape)
+                del self._waiting[frame_id]
+                return
+        self._early_depths.append((key, stamp_s, msg))
+
+    def release(self, now_s: float) -> Iterator[Frame]:
+        """Frames that no longer wait for anything, in order, as of log time ``now_s``."""
+        for frame_id, (_, _, deadline_s) in list(self._waiting.items()):
+            if deadline_s < now_s:
+                del self._waiting[frame_id]
+        self._early_depths = [d for d in self._early_depths if d[1] + DEPTH_WAIT_S >= now_s]
+        while self._queue and id(self._queue[0]) not in self._waiting:
+            yield self._queue.popleft()
