@@ -1,0 +1,124 @@
+"""The camera-linchpin fix: how much the graph may trust camera factors right now.
+
+The paper's system lost everything when smoke blinded its camera. Here camera health maps to a
+weight in [0, 1]: 1 keeps camera factors as reported, values in between inflate their
+covariance by ``1 / weight^2``, 0 drops them and the graph runs on radar alone. Dropping has
+hysteresis: the camera comes back only after several healthy frames, flagged ``reentered`` so
+the caller resets the camera's metric scale.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from smokyslam.errors import EstimationError
+
+if TYPE_CHECKING:
+    from smokyslam.config import CameraGateConfig
+
+
+@dataclass(frozen=True)
+class CameraHealth:
+    """Per-frame camera health.
+
+    noise_fraction: estimated salt-and-pepper pixel fraction, 0..1.
+    contrast: RMS contrast of the image (grey-level std / 255), 0..1; haze lowers it.
+    tracked: features tracked into this frame. inlier_ratio: geometric inliers / tracked, 0..1.
+    """
+
+    noise_fraction: float
+    contrast: float
+    tracked: int
+    inlier_ratio: float
+
+
+@dataclass(frozen=True)
+class HealthRamp:
+    """Weight 1 at ``good``, 0 at ``bad``, linear in between (either may be the larger)."""
+
+    good: float
+    bad: float
+
+    def weight(self, value: float) -> float:
+        return float(np.clip((value - self.bad) / (self.good - self.bad), 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class GateDecision:
+    """weight: 0 (drop camera factors) to 1 (trust as reported).
+    reentered: True on the first frame the camera is used again after being dropped."""
+
+    weight: float
+    reentered: bool = False
+
+
+class CameraGate:
+    """Camera factor weight from health, with hysteresis. One verb: ``update(health)``."""
+
+    def __init__(
+        self,
+        noise_fraction: HealthRamp = HealthRamp(good=0.05, bad=0.30),
+        contrast: HealthRamp = HealthRamp(good=0.12, bad=0.03),
+        tracked: HealthRamp = HealthRamp(good=80.0, bad=15.0),
+        inlier_ratio: HealthRamp = HealthRamp(good=0.6, bad=0.25),
+        drop_below: float = 0.15,
+        reenter_above: float = 0.5,
+        reenter_frames: int = 3,
+    ) -> None:
+        """Ramps per health signal; the weight is the smallest of the four. The camera is
+        dropped when the weight falls below ``drop_below`` and re-enters after
+        ``reenter_frames`` consecutive frames at or above ``reenter_above``."""
+        self._ramps = (noise_fraction, contrast, tracked, inlier_ratio)
+        self._drop_below = drop_below
+        self._reenter_above = reenter_above
+        self._reenter_frames = reenter_frames
+        self._dropped = False
+        self._healthy_streak = 0
+
+    @property
+    def dropped(self) -> bool:
+        """Whether camera factors are currently dropped."""
+        return self._dropped
+
+    def raw_weight(self, health: CameraHealth) -> float:
+        """The weight before hysteresis: the worst of the four health ramps."""
+        values = (health.noise_fraction, health.contrast, health.tracked, health.inlier_ratio)
+        return min(ramp.weight(v) for ramp, v in zip(self._ramps, values, strict=True))
+
+    def update(self, health: CameraHealth) -> GateDecision:
+        """Decide the weight of this frame's camera factor."""
+        weight = self.raw_weight(health)
+        if not self._dropped:
+            if weight < self._drop_below:
+                self._dropped = True
+                self._healthy_streak = 0
+                return GateDecision(0.0)
+            return GateDecision(weight)
+        self._healthy_streak = self._healthy_streak + 1 if weight >= self._reenter_above else 0
+        if self._healthy_streak < self._reenter_frames:
+            return GateDecision(0.0)
+        self._dropped = False
+        return GateDecision(weight, reentered=True)
+
+
+def inflate_covariance(covariance: np.ndarray, weight: float) -> np.ndarray:
+    """Covariance scaled by ``1 / weight^2`` (weight in (0, 1]); a down-weighted factor."""
+    if weight <= 0.0:
+        raise EstimationError("a dropped factor (weight 0) has no covariance; do not add it")
+    return np.asarray(covariance, dtype=float) / weight**2
+
+
+def get_camera_gate(config: CameraGateConfig) -> CameraGate:
+    """A CameraGate with the health ramps and hysteresis of ``config``."""
+    return CameraGate(
+        noise_fraction=HealthRamp(*config.noise_fraction),
+        contrast=HealthRamp(*config.contrast),
+        tracked=HealthRamp(*config.tracked),
+        inlier_ratio=HealthRamp(*config.inlier_ratio),
+        drop_below=config.drop_below,
+        reenter_above=config.reenter_above,
+        reenter_frames=config.reenter_frames,
+    )
