@@ -29,6 +29,10 @@ class MapFileError(SmokySlamError):
     """A map file (map_server YAML + image) is missing, malformed or inconsistent."""
 
 
+class MapError(SmokySlamError):
+    """A map cannot be built (e.g. poses so far apart that the grid would exceed its limit)."""
+
+
 class WorldError(SmokySlamError):
     """A simulation world cannot be built (unknown name, unusable floor plan)."""
 

@@ -68,6 +68,39 @@ def se2_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return se2_compose(se2_inverse(a), b)
 
 
+def _se2_v_terms(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``sin(t)/t`` and ``(1 - cos(t))/t`` of the SE(2) V matrix, with their series near 0."""
+    small = np.abs(theta) < 1e-6
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, theta / 2.0, (1.0 - np.cos(safe)) / safe)
+    return a, b
+
+
+def se2_exp(twist: np.ndarray) -> np.ndarray:
+    """Pose ``[x, y, yaw]`` reached by holding the body twist ``[dx, dy, dyaw]`` (metres and
+    radians over the step; body-frame velocity times dt) constant: the SE(2) exponential.
+
+    Broadcasts over leading axes.
+    """
+    twist = np.asarray(twist, dtype=float)
+    a, b = _se2_v_terms(twist[..., 2])
+    x = a * twist[..., 0] - b * twist[..., 1]
+    y = b * twist[..., 0] + a * twist[..., 1]
+    return np.stack([x, y, wrap_angle(twist[..., 2])], axis=-1)
+
+
+def se2_log(pose: np.ndarray) -> np.ndarray:
+    """Body twist ``[dx, dy, dyaw]`` whose :func:`se2_exp` is ``pose``; broadcasts."""
+    pose = np.asarray(pose, dtype=float)
+    theta = wrap_angle(pose[..., 2])
+    a, b = _se2_v_terms(theta)
+    det = a * a + b * b
+    dx = (a * pose[..., 0] + b * pose[..., 1]) / det
+    dy = (-b * pose[..., 0] + a * pose[..., 1]) / det
+    return np.stack([dx, dy, theta], axis=-1)
+
+
 def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
     """Map (N, 2) points through the planar pose ``[x, y, yaw]`` (child frame -> parent frame)."""
     points_xy = np.asarray(points_xy, dtype=float).reshape(-1, 2)

@@ -105,5 +105,40 @@ class Extrinsics:
     T_base_camera: np.ndarray = field(default_factory=lambda: np.eye(4))
 
 
+@dataclass
+class OdometryHealth:
+    """How much an odometry estimate can be trusted.
+
+    inliers: correspondences (scan matching) or points (Doppler) that agreed with the estimate.
+    fitness: RMS residual of those inliers, metres (NaN when there were none).
+    lost: the source could not measure this frame; the pose only follows its motion model.
+    extra: source-specific statistics (e.g. ``doppler_inliers``), plain floats.
+    """
+
+    inliers: int
+    fitness: float
+    lost: bool
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class Odometry:
+    """One frame of an odometry source, ready to become a between-factor.
+
+    pose_world_sensor: (3,) [x_m, y_m, yaw_rad] of the sensor in the odometry's world frame.
+    delta: (3,) [x_m, y_m, yaw_rad] relative pose since the previous keyframe, expressed in
+    that keyframe's sensor frame (``se2_between(previous, current)``).
+    covariance: (3, 3) covariance of ``delta`` in the same [x, y, yaw] order (m^2, rad^2).
+    keyframe: True when this frame starts a new ``delta``; the next one is relative to it.
+    """
+
+    stamp_s: float
+    pose_world_sensor: np.ndarray
+    delta: np.ndarray
+    covariance: np.ndarray
+    health: OdometryHealth
+    keyframe: bool = True
+
+
 Frame = RadarScan | CameraFrame | ImuSample | GroundTruthPose | GroundTruthMap
 """Anything a log reader yields."""

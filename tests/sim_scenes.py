@@ -1,0 +1,50 @@
+"""Small hand-made worlds and exact geometry helpers for the simulated-sensor tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smokyslam.geometry import GridSpec
+from smokyslam.sim.world import World, box_world
+
+
+def pillar_world() -> World:
+    """8 x 6 m room (inner faces x = 0, 8 and y = 0, 6) with a 1 x 1 m pillar at (6, 3)."""
+    world = box_world(8.0, 6.0)
+    cells = world.spec.cells_of(np.array([[5.55, 2.55], [6.45, 3.45]]))
+    world.occupied[cells[0, 1] : cells[1, 1] + 1, cells[0, 0] : cells[1, 0] + 1] = True
+    return world
+
+
+def l_world() -> World:
+    """L-shaped corridor: free where x in [0, 12], y in [0, 2.5] or x in [0, 2.5], y in [0, 10]."""
+    res = 0.1
+    spec = GridSpec(origin_xy_m=(-0.5, -0.5), resolution_m=res, shape=(110, 130))
+    centres = spec.centres_of(
+        np.stack(np.meshgrid(np.arange(130), np.arange(110)), axis=-1).reshape(-1, 2)
+    ).reshape(110, 130, 2)
+    x, y = centres[..., 0], centres[..., 1]
+    inside = (x > 0) & (y > 0)
+    free = inside & (((x < 12) & (y < 2.5)) | ((x < 2.5) & (y < 10)))
+    occupied = ~free
+    return World("l", occupied, np.ones_like(occupied), spec, start_pose=np.array([1.2, 1.2, 0]))
+
+
+def distance_to_occupied(world: World, points_xy: np.ndarray) -> np.ndarray:
+    """(N,) exact distance, metres, from each point to the nearest occupied square (0 inside)."""
+    cells = np.argwhere(world.occupied)[:, ::-1]
+    centres = world.spec.centres_of(cells)
+    half = 0.5 * world.spec.resolution_m
+    gap = np.maximum(np.abs(points_xy[:, None, :] - centres[None, :, :]) - half, 0.0)
+    return np.sqrt((gap**2).sum(axis=-1)).min(axis=1)
+
+
+def free_poses(world: World, n: int, rng: np.random.Generator, clearance_m: float = 0.5):
+    """(n, 3) random poses at least ``clearance_m`` away from every occupied cell."""
+    x0, x1, y0, y1 = world.spec.extent_m
+    poses = []
+    while len(poses) < n:
+        p = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+        if distance_to_occupied(world, p[None])[0] > clearance_m:
+            poses.append([p[0], p[1], rng.uniform(-np.pi, np.pi)])
+    return np.array(poses)
