@@ -1,0 +1,1 @@
+"""Benchmarks behind ``smokyslam bench``: functions that return plain numbers."""

@@ -1,0 +1,1 @@
+"""Occupancy grids: ray casting, radar stitching, visual flattening, map pictures."""
