@@ -54,7 +54,8 @@ class SmokeEmulator:
         n_drop = _count(self.config.radar_loss, n)
         keep = np.ones(n, dtype=bool)
         if n_drop:
-            keep[self._rng(_RADAR_STREAM, scan.stamp_s).choice(n, n_drop, replace=False)] = False
+            # A fixed per-frame order makes levels nested: what 0.1 drops, 0.2 drops too.
+            keep[self._rng(_RADAR_STREAM, scan.stamp_s).permutation(n)[:n_drop]] = False
         return dataclasses.replace(
             scan,
             points_xyz_m=scan.points_xyz_m[keep],
@@ -81,7 +82,11 @@ class SmokeEmulator:
         n_noisy = _count(self.config.camera_noise, image.size)
         if n_noisy:
             rng = self._rng(_CAMERA_STREAM, frame.stamp_s)
-            pixels = rng.choice(image.size, n_noisy, replace=False)
+            # Pixel order and salt/pepper values are drawn for the whole frame, independent of
+            # the level, so a noisier level corrupts a superset of the same pixels.
+            order = rng.permutation(image.size)
+            salt = rng.random(image.size) < 0.5
+            pixels = order[:n_noisy]
             image = image.copy()
-            image.reshape(-1)[pixels] = rng.integers(0, 2, n_noisy, dtype=np.uint8) * 255
+            image.reshape(-1)[pixels] = np.where(salt[pixels], 255, 0).astype(np.uint8)
         return dataclasses.replace(frame, image=image)

@@ -103,3 +103,22 @@ def test_other_frames_and_clean_config_pass_through() -> None:
     frame, scan = _grey(77), _scan(10)
     np.testing.assert_array_equal(clean.apply(frame).image, frame.image)
     assert len(clean.apply(scan)) == 10
+
+
+def test_smoke_levels_are_nested_so_more_smoke_degrades_the_same_log_further():
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(60, 3))
+    scan = RadarScan(2.5, points, np.zeros(60), np.zeros(60))
+    kept = [
+        {tuple(p) for p in SmokeEmulator(SmokeConfig(radar_loss=r)).apply(scan).points_xyz_m}
+        for r in (0.1, 0.2, 0.5)
+    ]
+    assert [len(k) for k in kept] == [54, 48, 30]
+    assert kept[2] < kept[1] < kept[0]
+    image = np.full((40, 50), 128, dtype=np.uint8)
+    frame = CameraFrame(1.0, image)
+    noisy = [
+        SmokeEmulator(SmokeConfig(camera_noise=f)).apply(frame).image != 128 for f in (0.05, 0.2)
+    ]
+    assert noisy[0].sum() == 100 and noisy[1].sum() == 400
+    assert np.all(noisy[1][noisy[0]])
