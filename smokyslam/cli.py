@@ -6,6 +6,7 @@ errors (SmokySlamError) become one line on stderr and exit code 1, never a trace
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 from pathlib import Path
@@ -55,10 +56,11 @@ def _root(
     ] = False,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log debug messages.")] = False,
 ) -> None:
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    level = logging.DEBUG if verbose else logging.WARNING
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    # Run folders log INFO to run.log; the console shows only what --verbose asks for.
+    for handler in logging.getLogger().handlers:
+        handler.setLevel(level)
 
 
 def effective_config(
@@ -128,6 +130,50 @@ def info(
     from smokyslam.loginfo import format_summary
 
     typer.echo(format_summary(open_log(log, effective_config(config)).summary()))
+
+
+@app.command("map")
+def map_command(
+    log: Annotated[Path, typer.Argument(help="A log with radar and ground-truth poses.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    poses: Annotated[
+        str, typer.Option(help="Pose source for stitching (only 'ground-truth' here).")
+    ] = "ground-truth",
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    config: ConfigOption = None,
+) -> None:
+    """Build the sparse radar map on ground-truth poses and score it against the true map."""
+    if poses != "ground-truth":
+        raise ConfigError(f"--poses must be 'ground-truth', got '{poses}' (use 'run' for SLAM)")
+    cfg = effective_config(config, radar_loss, camera_noise, haze)
+    from smokyslam.pipelines.truth_mapping import run_truth_mapping
+
+    result = run_truth_mapping(log, cfg, out)
+    for name, scores in result.metrics.get("maps", {}).items():
+        typer.echo(f"{name}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()))
+    typer.echo(f"wrote {result.out_dir}/ in {result.wall_s:.1f} s")
+
+
+@app.command()
+def evaluate(
+    map_yaml: Annotated[Path, typer.Argument(help="A map_server map YAML to score.")],
+    truth: Annotated[Path, typer.Option(help="Ground truth: a log with a map, or a map YAML.")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="JSON file for the metrics.")
+    ] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Score a saved map against ground truth (error index, occupied precision/recall/F1/IoU)."""
+    from smokyslam.pipelines.evaluate_map import evaluate_map_file
+
+    metrics = evaluate_map_file(map_yaml, truth, effective_config(config))
+    for key, value in metrics.items():
+        typer.echo(f"{key:20s} {value:.4f}")
+    target = out or map_yaml.with_name(map_yaml.stem + "_metrics.json")
+    target.write_text(json.dumps(metrics, indent=2) + "\n")
+    typer.echo(f"wrote {target}")
 
 
 def main() -> None:

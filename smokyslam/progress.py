@@ -34,7 +34,8 @@ def progress_bar(description: str, total: float, unit: str = "s") -> Iterator[Ca
         TimeRemainingColumn(),
         TextColumn("{task.fields[status]}"),
     ]
-    with Progress(*columns, console=console, transient=False) as progress:
+    # Bars are for people at a terminal; piped output (CI, scripts) stays clean.
+    with Progress(*columns, console=console, disable=not console.is_terminal) as progress:
         task = progress.add_task(description, total=total, status="")
 
         def update(done: float, total: float | None = None, status: str = "") -> None:

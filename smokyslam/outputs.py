@@ -1,0 +1,110 @@
+"""An output folder: results, the effective config, metrics and a run log, written as they come.
+
+Each stage writes what it has as soon as it has it, so a run cut short keeps what it computed.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from smokyslam.config import SmokySlamConfig, write_config
+from smokyslam.geometry import GridSpec
+from smokyslam.mapio import save_map
+from smokyslam.mapping.render import render_map_png
+from smokyslam.types import GroundTruthMap
+
+METRICS_FILE = "metrics.json"
+CONFIG_FILE = "config.yaml"
+RUN_LOG_FILE = "run.log"
+
+
+def _merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in update.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+class OutputFolder:
+    """A results folder: ``config.yaml``, ``metrics.json``, ``run.log``, ``maps/``, plots."""
+
+    def __init__(self, root: Path | str) -> None:
+        self.root = Path(root)
+        self.root.mkdir(parents=True, exist_ok=True)
+        self._log_handler: logging.Handler | None = None
+
+    def path(self, *parts: str) -> Path:
+        """A path inside the folder (parent folders created)."""
+        target = self.root.joinpath(*parts)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        return target
+
+    def write_config(self, config: SmokySlamConfig) -> Path:
+        return write_config(config, self.path(CONFIG_FILE))
+
+    def update_metrics(self, metrics: dict[str, Any]) -> dict[str, Any]:
+        """Merge ``metrics`` into ``metrics.json`` (nested keys merge) and return the whole."""
+        target = self.path(METRICS_FILE)
+        current = json.loads(target.read_text()) if target.is_file() else {}
+        merged = _jsonable(_merge(current, metrics))
+        target.write_text(json.dumps(merged, indent=2) + "\n")
+        return merged
+
+    def write_map(
+        self,
+        name: str,
+        cells: np.ndarray,
+        spec: GridSpec,
+        truth: GroundTruthMap | None = None,
+        trajectory_xy_m: np.ndarray | None = None,
+    ) -> Path:
+        """``maps/NAME.{pgm,yaml,png}`` and, with ground truth, ``maps/NAME_vs_truth.png``."""
+        yaml_path = save_map(self.path("maps", f"{name}.yaml"), cells, spec)
+        if truth is not None or trajectory_xy_m is not None:
+            render_map_png(
+                self.path("maps", f"{name}_vs_truth.png"), cells, spec, truth, trajectory_xy_m
+            )
+        return yaml_path
+
+    def start_run_log(self, level: int = logging.INFO) -> None:
+        """Copy smokyslam's log records into ``run.log`` until :meth:`close`."""
+        handler = logging.FileHandler(self.path(RUN_LOG_FILE), mode="w")
+        handler.setLevel(level)
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+        package_logger = logging.getLogger("smokyslam")
+        package_logger.addHandler(handler)
+        package_logger.setLevel(min(package_logger.level or logging.WARNING, level))
+        self._log_handler = handler
+
+    def close(self) -> None:
+        if self._log_handler is not None:
+            logging.getLogger("smokyslam").removeHandler(self._log_handler)
+            self._log_handler.close()
+            self._log_handler = None
+
+    def __enter__(self) -> OutputFolder:
+        self.start_run_log()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

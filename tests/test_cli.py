@@ -1,0 +1,159 @@
+"""The command line: contracts checked from outside, and one clear line for bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from smokyslam.config import load_config
+from smokyslam.frontends.readers.registry import open_log
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def smokyslam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "smokyslam.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+    )
+
+
+def test_version_and_help_on_every_command():
+    out = smokyslam("--version")
+    assert out.returncode == 0 and out.stdout.startswith("smokyslam ")
+    commands = ["simulate", "info", "map", "evaluate", "dump-config"]
+    for command in commands:
+        assert smokyslam(command, "--help").returncode == 0, command
+
+
+def test_info_reports_topics_types_counts_and_duration(office_log):
+    out = smokyslam("info", office_log)
+    assert out.returncode == 0, out.stderr
+    lines = {line.split()[0]: line.split() for line in out.stdout.splitlines() if line[:1] == "/"}
+    assert lines["/ti_mmwave/radar_scan_pcl"][1:3] == ["sensor_msgs/msg/PointCloud2", "301"]
+    assert lines["/camera/image_raw"][1:3] == ["sensor_msgs/msg/Image", "451"]
+    assert float(lines["/imu"][3]) == pytest.approx(100.0, rel=0.02)
+    assert float(lines["/ground_truth/pose"][3]) == pytest.approx(50.0, rel=0.02)
+    assert lines["/ground_truth/map"][1:3] == ["nav_msgs/msg/OccupancyGrid", "1"]
+    assert "/tf_static" in lines and "/camera/camera_info" in lines
+    assert "duration: 30.0" in out.stdout
+
+
+def test_info_on_the_real_ti_bag(real_data_dir):
+    out = smokyslam("info", real_data_dir / "ti_mmwave_rospkg_demo.bag")
+    assert out.returncode == 0, out.stderr
+    assert any(
+        line.startswith("/ti_mmwave/radar_scan_pcl") and " 412 " in line
+        for line in out.stdout.splitlines()
+    )
+
+
+def _independent_error_index(map_yaml: Path, truth_cells: np.ndarray, truth_spec) -> float:
+    """Eq. 2 from the files alone: PGM pixels -> 1 / 0 / 0.5, sampled at truth cell centres."""
+    meta = yaml.safe_load(map_yaml.read_text())
+    pixels = cv2.imread(str(map_yaml.parent / meta["image"]), cv2.IMREAD_GRAYSCALE)
+    occupancy = (255.0 - pixels) / 255.0
+    value = np.full(pixels.shape, 0.5)
+    value[occupancy > meta["occupied_thresh"]] = 1.0
+    value[occupancy < meta["free_thresh"]] = 0.0
+    rows, cols = truth_cells.shape
+    iy, ix = np.mgrid[0:rows, 0:cols]
+    x = truth_spec.origin_xy_m[0] + (ix + 0.5) * truth_spec.resolution_m
+    y = truth_spec.origin_xy_m[1] + (iy + 0.5) * truth_spec.resolution_m
+    col = np.floor((x - meta["origin"][0]) / meta["resolution"]).astype(int)
+    row_from_bottom = np.floor((y - meta["origin"][1]) / meta["resolution"]).astype(int)
+    row = pixels.shape[0] - 1 - row_from_bottom
+    inside = (col >= 0) & (col < pixels.shape[1]) & (row >= 0) & (row < pixels.shape[0])
+    estimate = np.full(truth_cells.shape, 0.5)
+    estimate[inside] = value[row[inside], col[inside]]
+    truth = np.where(truth_cells == 100, 1.0, 0.0)
+    known = truth_cells != -1
+    return float(np.mean((truth[known] - estimate[known]) ** 2))
+
+
+def test_map_contract_and_error_index_rising_with_radar_loss(office_log, tmp_path):
+    truth = open_log(office_log, load_config()).ground_truth_map()
+    scores = []
+    for loss in ("0", "0.1", "0.2"):
+        out_dir = tmp_path / f"map-{loss}"
+        out = smokyslam(
+            "map", office_log, "--poses", "ground-truth", "--radar-loss", loss, "--out", out_dir
+        )
+        assert out.returncode == 0, out.stderr
+        for name in ("maps/radar_sparse.pgm", "maps/radar_sparse.yaml", "config.yaml"):
+            assert (out_dir / name).is_file(), name
+        assert load_config(out_dir / "config.yaml").smoke.radar_loss == float(loss)
+        sparse = json.loads((out_dir / "metrics.json").read_text())["maps"]["radar_sparse"]
+        assert set(sparse) == {
+            "error_index",
+            "occupied_precision",
+            "occupied_recall",
+            "occupied_f1",
+            "occupied_iou",
+        }
+        independent = _independent_error_index(
+            out_dir / "maps/radar_sparse.yaml", truth.cells, truth.spec
+        )
+        assert sparse["error_index"] == pytest.approx(independent, abs=0.02)
+        scores.append(sparse)
+    assert scores[0]["error_index"] < 0.35
+    assert scores[0]["occupied_precision"] >= 0.6
+    assert scores[0]["error_index"] < scores[1]["error_index"] < scores[2]["error_index"]
+
+
+def test_evaluate_scores_a_saved_map_against_log_and_map_truth(office_log, tmp_path):
+    out_dir = tmp_path / "map"
+    assert smokyslam("map", office_log, "--out", out_dir).returncode == 0
+    expected = json.loads((out_dir / "metrics.json").read_text())["maps"]["radar_sparse"]
+    map_yaml = out_dir / "maps/radar_sparse.yaml"
+    out = smokyslam("evaluate", map_yaml, "--truth", office_log, "--out", tmp_path / "m.json")
+    assert out.returncode == 0, out.stderr
+    assert json.loads((tmp_path / "m.json").read_text()) == pytest.approx(expected)
+    # A map scored against itself is perfect on its known cells.
+    self_scores = smokyslam("evaluate", map_yaml, "--truth", map_yaml, "--out", tmp_path / "s.json")
+    assert self_scores.returncode == 0, self_scores.stderr
+    assert json.loads((tmp_path / "s.json").read_text())["occupied_f1"] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["info", "{tmp}/missing.mcap"], "not found"),
+        (["info", "{tmp}/notes.bag"], "not a ROS1 bag"),
+        (["info", "{tmp}/half.mcap"], "truncated or corrupt"),
+        (["map", "{tmp}/nomap.bag", "--out", "{tmp}/o"], "ground_truth_pose"),
+        (["dump-config", "--config", "{tmp}/bad.yaml"], "unknown config key 'smoke.radar_los'"),
+        (["simulate", "--world", "castle", "--out", "{tmp}/x.mcap"], "castle"),
+        (["evaluate", "{tmp}/broken.yaml", "--truth", "{tmp}/broken.yaml"], "map image not found"),
+    ],
+)
+def test_bad_input_gets_one_clear_line_and_exit_1(args, message, tmp_path, office_log):
+    (tmp_path / "notes.bag").write_text("these are not radar data\n")
+    data = office_log.read_bytes()
+    (tmp_path / "half.mcap").write_bytes(data[: len(data) // 2])
+    (tmp_path / "bad.yaml").write_text("smoke:\n  radar_los: 0.1\n")
+    (tmp_path / "broken.yaml").write_text("image: gone.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
+    _radar_only_bag(tmp_path / "nomap.bag")
+    out = smokyslam(*[a.format(tmp=tmp_path) for a in args])
+    assert out.returncode == 1
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], out.stderr
+
+
+def _radar_only_bag(path: Path) -> None:
+    from smokyslam.config import TopicsConfig
+    from smokyslam.sim.recorder import LogWriter
+    from smokyslam.types import RadarScan
+
+    with LogWriter(path, TopicsConfig()) as writer:
+        for i in range(3):
+            points = np.array([[2.0, 0.1 * i, 0.0]])
+            writer.write_radar(RadarScan(0.1 * i, points, np.ones(1), np.zeros(1)))
