@@ -1,0 +1,485 @@
+"""Walking paths: a smooth, timed closed tour of a World, walked forwards like a person.
+
+1. Walkable cells: clearance >= ``clearance_m`` + 1.5 cells, connected to the start.
+2. Stops: the start, then open spots (clearance maxima with room for a loop) >= 3 m apart.
+3. Tours: cheapest insertion + 2-opt on grid distances, one per number of stops, so a short
+   walk stays near the start and a long one visits everything (and repeats if need be).
+4. Legs: Dijkstra on the 8-connected grid, dearer near walls so paths keep to the middle.
+5. Where the walker turns back (> 100 deg at a stop) it walks a teardrop loop around the stop.
+6. Smoothing until the curvature allows ``min_speed`` within the turn-rate limit, pushing the
+   path back out wherever it comes closer than ``clearance_m`` + 1 cell to a wall.
+7. Speeds: capped by curvature and cruise speed, acceleration-limited; the longest tour that
+   fits at full speed is chosen and its cruise speed bisected so the walk lasts ``duration_s``.
+
+The walk ends where it began and never stops: speed stays within [min_speed, max_speed] and the
+heading is the direction of motion. Clearance is the distance transform of the free space
+(cell centre to the nearest occupied cell centre), metres.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.interpolate import CubicSpline, PchipInterpolator
+from scipy.ndimage import (
+    distance_transform_edt,
+    gaussian_filter1d,
+    label,
+    maximum_filter,
+    maximum_filter1d,
+)
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from smokyslam.config import TrajectoryConfig
+from smokyslam.errors import ConfigError, WorldError
+from smokyslam.geometry import wrap_angle
+from smokyslam.sim.trajectory import Trajectory
+from smokyslam.sim.world import World
+
+logger = logging.getLogger(__name__)
+
+SAMPLE_RATE_HZ = 200.0  # trajectory samples per second
+_ACCEL_MPS2 = 0.4  # walking speed changes at most this fast
+_TURN_MARGIN = 0.95  # planned yaw rates stay 5 % under the limit
+_SPEED_MARGIN = 0.01  # planned speeds stay 1 % inside [min_speed, max_speed]
+_PREFERRED_SPEED = 0.75  # of max_speed: repeated tours are walked near this pace
+_LOOP_TURN_RAD = np.radians(100.0)  # sharper turns at a waypoint become teardrop loops
+_WAYPOINT_SPACING_M = 3.0
+_MAX_WAYPOINTS = 30
+_TANGENT_BACK_M = 1.5  # a teardrop leaves the leg this far before its waypoint
+_DS_M = 0.05  # polyline spacing while smoothing
+_COST_REF_M, _COST_WEIGHT = 1.2, 3.0  # grid steps with clearance c cost 1 + w * (1 - c / ref)
+
+
+def clearance_map_m(world: World) -> np.ndarray:
+    """(rows, cols) metres from each cell centre to the nearest occupied cell centre (0 inside)."""
+    return distance_transform_edt(~world.occupied) * world.spec.resolution_m
+
+
+def turn_radius_m(config: TrajectoryConfig) -> float:
+    """Tightest curve radius walkable at ``min_speed_mps`` within the turn-rate limit."""
+    return config.min_speed_mps / (_TURN_MARGIN * config.max_turn_rate_radps)
+
+
+def loop_radius_m(config: TrajectoryConfig) -> float:
+    """Radius of the teardrop loops in which the walker turns back."""
+    return 1.3 * turn_radius_m(config)
+
+
+def walk_clearance_m(config: TrajectoryConfig, resolution_m: float) -> float:
+    """Clearance of the grid cells paths may use: ``clearance_m`` plus 1.5 cells for smoothing."""
+    return config.clearance_m + 1.5 * resolution_m
+
+
+def start_clearance_m(config: TrajectoryConfig, resolution_m: float) -> float:
+    """Clearance a start or waypoint needs for a loop around it."""
+    return loop_radius_m(config) + walk_clearance_m(config, resolution_m)
+
+
+class _Grid:
+    """The walkable grid graph from the start, with Dijkstra distances from the waypoints."""
+
+    def __init__(self, world: World, config: TrajectoryConfig) -> None:
+        if world.start_pose is None:
+            raise WorldError(f"world '{world.name}' has no start pose")
+        self.spec = world.spec
+        res = world.spec.resolution_m
+        self.clearance = clearance_map_m(world)
+        walkable = (self.clearance >= walk_clearance_m(config, res)) & world.known
+        ix, iy = world.spec.cells_of(np.asarray(world.start_pose[:2])[None])[0]
+        inside = bool(world.spec.inside(np.array([[ix, iy]]))[0])
+        if not (inside and walkable[iy, ix]):
+            have = self.clearance[iy, ix] if inside else 0.0
+            raise WorldError(
+                f"start pose of world '{world.name}' is {have:.2f} m from a wall; "
+                f"a walk needs {walk_clearance_m(config, res):.2f} m"
+            )
+        labels, _ = label(walkable, structure=np.ones((3, 3)))
+        self.walkable = labels == labels[iy, ix]
+        self.start_cell = (iy, ix)
+        self.node_of = np.full(walkable.shape, -1, dtype=np.int64)
+        cells = np.argwhere(self.walkable)
+        self.node_of[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
+        self.cells = cells
+        cost = 1.0 + _COST_WEIGHT * np.clip(1.0 - self.clearance / _COST_REF_M, 0.0, None)
+        rows, cols, weights = [], [], []
+        for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+            a = cells
+            b = a + np.array([dy, dx])
+            ok = (b[:, 0] < walkable.shape[0]) & (b[:, 1] >= 0) & (b[:, 1] < walkable.shape[1])
+            a, b = a[ok], b[ok]
+            ok = self.walkable[b[:, 0], b[:, 1]]
+            a, b = a[ok], b[ok]
+            step = np.hypot(dy, dx) * res
+            rows.append(self.node_of[a[:, 0], a[:, 1]])
+            cols.append(self.node_of[b[:, 0], b[:, 1]])
+            weights.append(step * 0.5 * (cost[a[:, 0], a[:, 1]] + cost[b[:, 0], b[:, 1]]))
+        n = len(cells)
+        self.graph = csr_matrix(
+            (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+        )
+
+    def waypoints(self, needed_m: float) -> np.ndarray:
+        """(K, 2) cells [iy, ix], start first, then open spots >= needed_m clear, spread out."""
+        res = self.spec.resolution_m
+        # At most ~_MAX_WAYPOINTS stops: big halls get sparser ones (Dijkstra runs once per stop).
+        area_m2 = len(self.cells) * res**2
+        spacing = round(max(_WAYPOINT_SPACING_M, np.sqrt(area_m2 / _MAX_WAYPOINTS)) / res)
+        c = np.where(self.walkable, self.clearance, 0.0)
+        peaks = (c >= needed_m) & (c >= maximum_filter(c, size=max(3, spacing // 3)))
+        cand = np.argwhere(peaks)
+        cand = cand[np.argsort(-c[cand[:, 0], cand[:, 1]], kind="stable")]
+        chosen = [np.array(self.start_cell)]
+        for cell in cand:
+            if np.min(np.hypot(*(np.array(chosen) - cell).T)) >= spacing:
+                chosen.append(cell)
+        return np.array(chosen)
+
+    def legs(self, waypoint_cells: np.ndarray) -> _Legs:
+        nodes = self.node_of[waypoint_cells[:, 0], waypoint_cells[:, 1]]
+        dist, pred = dijkstra(self.graph, directed=False, indices=nodes, return_predecessors=True)
+        return _Legs(self, nodes, dist[:, nodes], pred)
+
+
+class _Legs:
+    """Shortest grid paths between waypoints, as (M, 2) world polylines, extracted on demand."""
+
+    def __init__(self, grid: _Grid, nodes: np.ndarray, cost: np.ndarray, pred: np.ndarray):
+        self.grid, self.nodes, self.cost, self.pred = grid, nodes, cost, pred
+        self._cache: dict[tuple[int, int], np.ndarray] = {}
+
+    def path(self, i: int, j: int) -> np.ndarray:
+        if (i, j) not in self._cache:
+            chain = [int(self.nodes[j])]
+            while chain[-1] != self.nodes[i]:  # loop over path length, not cells
+                chain.append(int(self.pred[i, chain[-1]]))
+            cells = self.grid.cells[chain[::-1]]
+            self._cache[(i, j)] = self.grid.spec.centres_of(cells[:, ::-1])
+            self._cache[(j, i)] = self._cache[(i, j)][::-1]
+        return self._cache[(i, j)]
+
+
+def _two_opt(cost: np.ndarray, tour: list[int]) -> list[int]:
+    """Reverse the best segment until no reversal shortens the closed tour (symmetric costs)."""
+    while len(tour) > 1:
+        cycle = np.array([0, *tour, 0])
+        i = np.arange(1, len(cycle) - 1)
+        before, first, last, after = cycle[i - 1], cycle[i], cycle[i], cycle[i + 1]
+        delta = (
+            cost[before[:, None], last[None, :]]
+            + cost[first[:, None], after[None, :]]
+            - cost[before, first][:, None]
+            - cost[last, after][None, :]
+        )
+        delta[np.tril_indices(len(i))] = 0.0
+        a, b = np.unravel_index(int(np.argmin(delta)), delta.shape)
+        if delta[a, b] > -1e-9:
+            break
+        tour = tour[:a] + tour[a : b + 1][::-1] + tour[b + 1 :]
+    return tour
+
+
+def _growing_tours(cost: np.ndarray, rng: np.random.Generator) -> list[list[int]]:
+    """Closed tours from waypoint 0: ``tours[j]`` visits j waypoints, each tour a superset of the
+    previous one (cheapest insertion, then 2-opt), so short walks stay near the start.
+    """
+    k = len(cost)
+    tours, tour = [[]], []
+    left = list(range(1, k))
+    while left:
+        cycle = np.array([0, *tour, 0])
+        a, b, w = cycle[:-1][None, :], cycle[1:][None, :], np.array(left)[:, None]
+        detour = (cost[a, w] + cost[w, b] - cost[a, b]).min(axis=1)
+        best = left.pop(int(np.argmin(detour)))
+        edge = int(np.argmin(cost[cycle[:-1], best] + cost[best, cycle[1:]] - cost[a[0], b[0]]))
+        tour = _two_opt(cost, [*tour[:edge], best, *tour[edge:]])
+        tours.append(tour[::-1] if rng.random() < 0.5 else tour)
+    return tours
+
+
+def _sequence(tours: list[list[int]], c: int) -> list[int]:
+    """Stops of the c-th walk in growing order: the start, then ``tours[c]``."""
+    return [0, *tours[c]]
+
+
+def _arc_lengths(path: np.ndarray) -> np.ndarray:
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+
+
+def _point_at(path: np.ndarray, cum: np.ndarray, s_m: float) -> np.ndarray:
+    return np.array([np.interp(s_m, cum, path[:, 0]), np.interp(s_m, cum, path[:, 1])])
+
+
+def _teardrop(
+    a: np.ndarray, w: np.ndarray, b: np.ndarray, radius_m: float, sign: float
+) -> tuple[np.ndarray, int]:
+    """Points A, a circle arc around W (entered and left tangentially), B; and the arc middle.
+
+    ``sign`` +1 circles counter-clockwise (a left turn overall), -1 clockwise.
+    """
+    da, db = np.linalg.norm(a - w), np.linalg.norm(b - w)
+    r = min(radius_m, 0.9 * da, 0.9 * db)
+    theta_t = np.arctan2(*(a - w)[::-1]) + sign * np.arccos(r / da)
+    theta_u = np.arctan2(*(b - w)[::-1]) - sign * np.arccos(r / db)
+    sweep = (sign * (theta_u - theta_t)) % (2.0 * np.pi)
+    n = max(8, int(np.ceil(r * sweep / _DS_M)))
+    angles = theta_t + sign * np.linspace(0.0, sweep, n)
+    arc = w + r * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    return np.vstack([a, arc, b]), 1 + n // 2
+
+
+def _resample_closed(points: np.ndarray, start_s: float = 0.0) -> np.ndarray:
+    """(N, 2) points every ~_DS_M along the closed polyline, the first at arc length start_s."""
+    closed = np.vstack([points, points[:1]])
+    step = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+    closed = closed[np.concatenate([[True], step > 1e-9])]
+    cum = _arc_lengths(closed)
+    n = max(16, round(cum[-1] / _DS_M))
+    s = (start_s + np.arange(n) * cum[-1] / n) % cum[-1]
+    return np.stack([np.interp(s, cum, closed[:, 0]), np.interp(s, cum, closed[:, 1])], axis=-1)
+
+
+def _respace_smooth(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ~_DS_M along a periodic spline through a closed, already smooth path.
+
+    Unlike linear resampling this adds no millimetre kinks, which a spline would turn into
+    curvature noise. Also returns (N,) the spline's peak |curvature|, 1/m, around each point
+    (checked at the point and a third of a step to either side), as the final walk sees it.
+    """
+    closed = np.vstack([points, points[:1]])
+    cum = _arc_lengths(closed)
+    n = max(16, round(cum[-1] / _DS_M))
+    spline = CubicSpline(cum, closed, bc_type="periodic")
+    s = (np.arange(n)[:, None] + np.array([-1.0, 0.0, 1.0]) / 3.0) * cum[-1] / n
+    d1, d2 = spline(s % cum[-1], 1), spline(s % cum[-1], 2)
+    cross = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+    kappa = np.abs(cross) / np.linalg.norm(d1, axis=-1) ** 3
+    return spline(s[:, 1]), kappa.max(axis=1)
+
+
+class _Walk:
+    """A closed tour as a periodic spline with its curvature-limited speeds along arc length."""
+
+    def __init__(self, points: np.ndarray, config: TrajectoryConfig, clear: bool = True) -> None:
+        closed = np.vstack([points, points[:1]])
+        cum = _arc_lengths(closed)
+        self.spline = CubicSpline(cum, closed, bc_type="periodic")
+        self.length_m = float(cum[-1])
+        # Nodes split each knot interval in three: curvature peaks sit at the knots.
+        self.s = (cum[:-1, None] + np.diff(cum)[:, None] * np.arange(3) / 3.0).ravel()
+        d1, d2 = self.spline(self.s, 1), self.spline(self.s, 2)
+        self.metric = np.linalg.norm(d1, axis=1)  # metres walked per unit of s (about 1)
+        self.kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / self.metric**3
+        # Curvature peaks can fall between nodes: cap speeds by the largest of five neighbours.
+        kappa_peak = maximum_filter1d(np.abs(self.kappa), size=5, mode="wrap")
+        turn_limited = _TURN_MARGIN * config.max_turn_rate_radps / np.maximum(kappa_peak, 1e-9)
+        # Plan 1 % inside the speed limits: sampling and interpolation wobble by a few 0.1 %.
+        self.v_min = config.min_speed_mps * (1.0 + _SPEED_MARGIN)
+        self.v_max = config.max_speed_mps * (1.0 - _SPEED_MARGIN)
+        self.v_cap = np.clip(turn_limited, self.v_min, self.v_max)
+        # Walkable within every limit: clear of walls, and no curve too tight for min_speed.
+        self.feasible = clear and bool(turn_limited.min() >= self.v_min)
+
+    def speeds(self, cruise_mps: float) -> np.ndarray:
+        """(n,) speed at ``self.s``: capped by cruise and curvature, then acceleration-limited."""
+        n, two_a = len(self.s), 2.0 * _ACCEL_MPS2
+        s3 = np.concatenate([self.s - self.length_m, self.s, self.s + self.length_m])
+        u = np.tile(np.minimum(self.v_cap, cruise_mps) ** 2, 3)  # three laps: periodic limits
+        forward = two_a * s3 + np.minimum.accumulate(u - two_a * s3)
+        backward = -two_a * s3 + np.minimum.accumulate((u + two_a * s3)[::-1])[::-1]
+        return np.sqrt(np.minimum(u, np.minimum(forward, backward))[n : 2 * n])
+
+    def node_times(self, cruise_mps: float) -> np.ndarray:
+        """(n + 1,) seconds at ``self.s`` and back at the start."""
+        v = self.speeds(cruise_mps)
+        ds = np.diff(np.append(self.s, self.length_m)) * self.metric
+        dt = 2.0 * ds / (v + np.roll(v, -1))
+        return np.concatenate([[0.0], np.cumsum(dt)])
+
+    def duration_s(self, cruise_mps: float) -> float:
+        return float(self.node_times(cruise_mps)[-1])
+
+    def cruise_for(self, duration_s: float) -> float:
+        """Cruise speed making one lap last ``duration_s`` (clamped to the speed limits)."""
+        lo, hi = self.v_min, self.v_max
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self.duration_s(mid) > duration_s else (lo, mid)
+        return 0.5 * (lo + hi)
+
+    def sample(self, duration_s: float, cruise_mps: float, laps: int = 1) -> Trajectory:
+        """Poses at SAMPLE_RATE_HZ over ``[0, duration_s]`` walking ``laps`` laps at cruise speed.
+
+        Laps lasting within 0.1 % of ``duration_s`` are stretched to end exactly on time; longer
+        ones are cut off at ``duration_s``.
+        """
+        t_lap = self.node_times(cruise_mps)
+        t_nodes = np.append((t_lap[:-1] + t_lap[-1] * np.arange(laps)[:, None]).ravel(), 0.0)
+        t_nodes[-1] = laps * t_lap[-1]
+        s_nodes = np.append((self.s + self.length_m * np.arange(laps)[:, None]).ravel(), 0.0)
+        s_nodes[-1] = laps * self.length_m
+        if abs(t_nodes[-1] - duration_s) < 1e-3 * duration_s:
+            t_nodes = t_nodes * (duration_s / t_nodes[-1])
+        stamps = np.linspace(0.0, duration_s, int(np.ceil(duration_s * SAMPLE_RATE_HZ)) + 1)
+        s = PchipInterpolator(t_nodes, s_nodes)(np.minimum(stamps, t_nodes[-1])) % self.length_m
+        xy, d1 = self.spline(s), self.spline(s, 1)
+        yaw = np.arctan2(d1[:, 1], d1[:, 0])
+        return Trajectory(stamps, np.column_stack([xy, yaw]))
+
+
+class _TourBuilder:
+    """Turns a waypoint sequence into a smooth closed path (with loops where it turns back)."""
+
+    def __init__(self, grid: _Grid, legs: _Legs, cells: np.ndarray, config: TrajectoryConfig):
+        self.grid, self.legs, self.config = grid, legs, config
+        self.points = grid.spec.centres_of(cells[:, ::-1])
+        self.gradient = np.stack(np.gradient(grid.clearance)[::-1], axis=-1)  # [d/dx, d/dy]
+        self.target_m = config.clearance_m + grid.spec.resolution_m
+        self.kappa_max = 1.0 / turn_radius_m(config)
+
+    def polyline(self, seq: list[int]) -> np.ndarray:
+        """Closed raw path through ``seq`` (teardrops included), starting at the first stop."""
+        radius = loop_radius_m(self.config)
+        if len(seq) == 1:
+            angles = np.linspace(0.0, 2.0 * np.pi, max(16, int(2 * np.pi * radius / _DS_M)))[:-1]
+            return self.points[seq[0]] + radius * np.stack([np.sin(angles), -np.cos(angles)], -1)
+        n = len(seq)
+        paths = [self.legs.path(seq[i], seq[(i + 1) % n]) for i in range(n)]
+        cums = [_arc_lengths(p) for p in paths]
+        cut_start, cut_end, loops = [0.0] * n, [0.0] * n, [None] * n
+        for i in range(n):
+            w = self.points[seq[i]]
+            back_in = min(_TANGENT_BACK_M, 0.45 * cums[i - 1][-1])
+            a = _point_at(paths[i - 1], cums[i - 1], cums[i - 1][-1] - back_in)
+            b = _point_at(paths[i], cums[i], min(_TANGENT_BACK_M, 0.45 * cums[i][-1]))
+            turn = wrap_angle(np.arctan2(*(b - w)[::-1]) - np.arctan2(*(w - a)[::-1]))
+            if abs(turn) <= _LOOP_TURN_RAD:
+                continue
+            sign = 1.0 if turn >= 0 else -1.0
+            # Entering is leaving backwards in time, around the circle the other way.
+            reverse_in = paths[i - 1][::-1]
+            cut_end[i - 1] = self._tangent_back(reverse_in, _arc_lengths(reverse_in), radius, -sign)
+            cut_start[i] = self._tangent_back(paths[i], cums[i], radius, sign)
+            a = _point_at(paths[i - 1], cums[i - 1], cums[i - 1][-1] - cut_end[i - 1])
+            b = _point_at(paths[i], cums[i], cut_start[i])
+            loops[i] = (a, w, b, radius, sign)
+        pieces, anchor = [], 0
+        for i in range(n):
+            if loops[i] is None:
+                pieces.append(self.points[seq[i]][None])
+            else:
+                piece, mid = _teardrop(*loops[i])
+                anchor = mid if i == 0 else anchor
+                pieces.append(piece)
+            inside = (cums[i] > cut_start[i]) & (cums[i] < cums[i][-1] - cut_end[i])
+            pieces.append(paths[i][inside])
+        poly = np.vstack(pieces)
+        return _resample_closed(poly, _arc_lengths(poly)[anchor])
+
+    def _tangent_back(self, path: np.ndarray, cum: np.ndarray, radius: float, sign: float):
+        """Arc length along ``path`` (leaving a loop's centre) where the loop should rejoin it.
+
+        The straight tangent from the loop circle to that point must stay well clear of walls:
+        the nearest to _TANGENT_BACK_M of the points whose tangent keeps 0.6 m, else the best.
+        """
+        backs = np.arange(0.5, 2.51, 0.1)
+        backs = backs[backs <= 0.45 * cum[-1]]
+        if len(backs) == 0:
+            return 0.45 * cum[-1]
+        w = path[0]
+        pts = np.stack([np.interp(backs, cum, path[:, 0]), np.interp(backs, cum, path[:, 1])], -1)
+        offset = pts - w
+        dist = np.maximum(np.linalg.norm(offset, axis=1), 1.2 * radius)
+        theta = np.arctan2(offset[:, 1], offset[:, 0]) - sign * np.arccos(radius / dist)
+        tangent = w + radius * np.stack([np.cos(theta), np.sin(theta)], -1)
+        frac = np.linspace(0.0, 1.0, 12)[None, :, None]
+        segment = tangent[:, None, :] + frac * (pts - tangent)[:, None, :]
+        worst = self.clearance_at(segment.reshape(-1, 2))[0].reshape(len(backs), -1).min(axis=1)
+        worst[np.linalg.norm(offset, axis=1) < 1.2 * radius] = 0.0
+        ok = worst >= 0.6
+        if not ok.any():
+            return float(backs[np.argmax(worst)])
+        return float(backs[ok][np.argmin(np.abs(backs[ok] - _TANGENT_BACK_M))])
+
+    def clearance_at(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) clearance, metres, and (N, 2) unit direction away from walls, at points' cells."""
+        cells = self.grid.spec.cells_of(points)
+        ix = np.clip(cells[:, 0], 0, self.grid.clearance.shape[1] - 1)
+        iy = np.clip(cells[:, 1], 0, self.grid.clearance.shape[0] - 1)
+        g = self.gradient[iy, ix]
+        return self.grid.clearance[iy, ix], g / np.maximum(np.linalg.norm(g, axis=1), 1e-9)[:, None]
+
+    def smooth(self, p: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Smooth until curvature <= 0.9 kappa_max, pushing points back out to target clearance.
+
+        Returns the path and whether it got there.
+        """
+        p = gaussian_filter1d(p, 0.15 / _DS_M, axis=0, mode="wrap")
+        for _ in range(150):
+            p, kappa = _respace_smooth(p)
+            bad = kappa > 0.9 * self.kappa_max
+            clear, away = self.clearance_at(p)
+            low = clear < self.target_m
+            if not bad.any() and not low.any():
+                return p, True
+            if bad.any():
+                w = np.clip(4.0 * gaussian_filter1d(bad.astype(float), 3.0, mode="wrap"), 0, 1)
+                p = p + w[:, None] * (gaussian_filter1d(p, 2.0, axis=0, mode="wrap") - p)
+            if low.any():
+                push = np.zeros_like(p)
+                push[low] = away[low] * (self.target_m + 0.03 - clear[low])[:, None]
+                p = p + gaussian_filter1d(push, 1.5, axis=0, mode="wrap") * 2.0
+        clear = bool((self.clearance_at(p)[0] >= self.config.clearance_m).all())
+        logger.debug("smoothing stopped with curvature or clearance still off")
+        return p, clear
+
+    def walk(self, seq: list[int]) -> _Walk:
+        path, clear = self.smooth(self.polyline(seq))
+        return _Walk(path, self.config, clear)
+
+
+def plan_walk(world: World, duration_s: float, seed: int, config: TrajectoryConfig) -> Trajectory:
+    """A walk of ``duration_s`` seconds through ``world``, starting and ending at its start pose.
+
+    Returns poses of base_link sampled at SAMPLE_RATE_HZ from stamp 0.0. Speeds stay within
+    ``[min_speed_mps, max_speed_mps]``, yaw rates within ``max_turn_rate_radps``, and the path
+    keeps ``clearance_m`` from occupied cells. The walk visits as many open spots (rooms) as fit
+    at full speed, and repeats its tour when one lap is too short. Deterministic for a seed.
+    """
+    if not duration_s > 0:
+        raise ConfigError(f"walk duration must be positive, got {duration_s}")
+    rng = np.random.default_rng(seed)
+    grid = _Grid(world, config)
+    cells = grid.waypoints(start_clearance_m(config, world.spec.resolution_m))
+    legs = grid.legs(cells)
+    tours = _growing_tours(legs.cost, rng)
+    builder = _TourBuilder(grid, legs, cells, config)
+    walks: dict[int, _Walk] = {}
+
+    def walk(c: int) -> _Walk:
+        if c not in walks:
+            walks[c] = builder.walk(_sequence(tours, c))
+        return walks[c]
+
+    def fits(c: int) -> bool:
+        return walk(c).feasible and walk(c).duration_s(walk(c).v_max) <= duration_s
+
+    # The most stops that can be walked at full speed within the duration (bisection).
+    lo, hi = -1, len(tours)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    # Fill the duration by walking slower, or by walking the tour several times.
+    for c in range(lo, -1, -1):
+        lap = walk(c)
+        fewest = int(np.ceil(duration_s / lap.duration_s(lap.v_min)))
+        most = int(np.floor(duration_s / lap.duration_s(lap.v_max)))
+        if lap.feasible and fewest <= most:  # take the number of laps nearest a natural pace
+            natural = float(np.clip(_PREFERRED_SPEED * config.max_speed_mps, lap.v_min, lap.v_max))
+            laps = int(np.clip(round(duration_s / lap.duration_s(natural)), fewest, most))
+            logger.debug("walk: stops %s, %d x %.1f m", _sequence(tours, c), laps, lap.length_m)
+            return lap.sample(duration_s, lap.cruise_for(duration_s / laps), laps)
+    logger.warning("a %.1f s walk is too short to return to the start", duration_s)
+    return walk(0).sample(duration_s, walk(0).v_max)
