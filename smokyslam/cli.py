@@ -176,6 +176,29 @@ def evaluate(
     typer.echo(f"wrote {target}")
 
 
+@app.command()
+def bench(
+    out: Annotated[Path, typer.Option("--out", "-o", help="JSON file for the numbers.")] = Path(
+        "bench.json"
+    ),
+    config: ConfigOption = None,
+) -> None:
+    """Measure speed and memory (ray casting, simulation, rendering, mapping) into JSON."""
+    import tempfile
+
+    from smokyslam.benchmarks.suite import run_benchmarks
+    from smokyslam.progress import console
+
+    with tempfile.TemporaryDirectory(prefix="smokyslam-bench-") as workdir:
+        results = run_benchmarks(
+            Path(workdir), effective_config(config), on_step=lambda s: console.log(s)
+        )
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    for key, value in results.items():
+        typer.echo(f"{key:32s} {value:12.2f}")
+    typer.echo(f"wrote {out}")
+
+
 def main() -> None:
     """Console entry point."""
     try:

@@ -157,3 +157,24 @@ def _radar_only_bag(path: Path) -> None:
         for i in range(3):
             points = np.array([[2.0, 0.1 * i, 0.0]])
             writer.write_radar(RadarScan(0.1 * i, points, np.ones(1), np.zeros(1)))
+
+
+def test_simulate_a_floor_plan_and_a_ros1_bag(tmp_path):
+    from smokyslam.geometry import GridSpec
+    from smokyslam.mapio import save_map
+
+    cells = np.zeros((80, 120), dtype=np.int8)
+    cells[[0, -1], :] = 100
+    cells[:, [0, -1]] = 100
+    cells[:, 60] = 100
+    cells[35:45, 60] = 0  # a 1 m doorway between two rooms
+    plan = save_map(tmp_path / "plan.yaml", cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
+    log = tmp_path / "plan.bag"
+    out = smokyslam("simulate", "--world", plan, "--duration", "10", "--seed", "1", "--out", log)
+    assert out.returncode == 0, out.stderr
+    reader = open_log(log, load_config())
+    truth = reader.ground_truth_map()
+    assert truth.cells.shape[0] >= 80 and truth.cells.shape[1] >= 120
+    assert reader.summary().format.startswith("ROS1")
+    counts = {s.topic: s.count for s in reader.summary().streams}
+    assert counts["/ti_mmwave/radar_scan_pcl"] == 101

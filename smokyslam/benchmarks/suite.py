@@ -1,0 +1,65 @@
+"""``smokyslam bench``: the project's speed and memory numbers, one JSON object.
+
+Targets (checked by people reading bench.json, not by timed tests): ray casting >= 50x a
+per-ray Python Bresenham; radar map >= 20x real time; camera rendering >= 50 frames/s.
+"""
+
+from __future__ import annotations
+
+import resource
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from smokyslam.benchmarks.mapping import map_realtime_factor, raycast_speedup_vs_naive
+from smokyslam.config import SmokySlamConfig
+from smokyslam.pipelines.truth_mapping import run_truth_mapping
+from smokyslam.rig import camera_mount, sensor_poses
+from smokyslam.sim.camera import CameraRenderer
+from smokyslam.sim.simulate import SimulationResult, simulate
+
+BENCH_WORLD, BENCH_SEED, BENCH_DURATION_S = "office", 7, 60.0
+
+
+def render_fps(sim: SimulationResult, config: SmokySlamConfig, frames: int = 200) -> float:
+    """Camera frames rendered per second along the simulated walk (one core, 320x240)."""
+    renderer = CameraRenderer(sim.world, config.simulation.camera, config.rig.camera_height_m, 0)
+    stamps = np.linspace(0.0, sim.duration_s, frames)
+    poses = sensor_poses(sim.trajectory.pose_at(stamps), camera_mount(config.rig))
+    started = time.perf_counter()
+    for pose in poses:
+        renderer.render(pose)
+    return frames / (time.perf_counter() - started)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process so far, MiB (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_benchmarks(
+    workdir: Path, config: SmokySlamConfig, on_step: Callable[[str], None] | None = None
+) -> dict[str, float]:
+    """Run every benchmark; logs and run folders go under ``workdir``."""
+    step = on_step or (lambda _name: None)
+    results: dict[str, float] = {}
+    step("ray casting vs naive Bresenham")
+    results.update(raycast_speedup_vs_naive())
+    step(f"simulating {BENCH_DURATION_S:.0f} s of {BENCH_WORLD}")
+    log_path = workdir / "bench_office60.mcap"
+    sim = simulate(BENCH_WORLD, BENCH_DURATION_S, BENCH_SEED, log_path, config, overwrite=True)
+    results["simulate_60s_wall_s"] = sim.wall_s
+    results["simulation_realtime_factor"] = sim.realtime_factor
+    results["radar_points_per_frame"] = sim.radar_points_per_frame
+    step("camera rendering")
+    results["render_fps"] = render_fps(sim, config)
+    step("radar map on ground-truth poses")
+    in_memory = map_realtime_factor()
+    results["map_realtime_factor_in_memory"] = in_memory["map_realtime_factor"]
+    started = time.perf_counter()
+    run_truth_mapping(log_path, config, workdir / "bench_map")
+    results["map_realtime_factor"] = BENCH_DURATION_S / (time.perf_counter() - started)
+    results["peak_rss_mb"] = peak_rss_mb()
+    return results
