@@ -37,5 +37,9 @@ class WorldError(SmokySlamError):
     """A simulation world cannot be built (unknown name, unusable floor plan)."""
 
 
+class TrajectoryFileError(SmokySlamError):
+    """A trajectory file (TUM, KITTI) is missing or malformed."""
+
+
 class EstimationError(SmokySlamError):
     """An estimator failed in a way the caller should report (e.g. a degenerate graph)."""

@@ -1,0 +1,89 @@
+"""The local map radar frames are registered against: every registered point within
+``radius_m`` of the sensor, thinned to at most ``points_per_voxel`` per voxel.
+
+Like kiss-icp's local map it keeps old points while the sensor stays near them, so coming back
+to a place re-anchors the odometry to what was mapped there. Lines are fitted at query time to
+the map points nearest each query point (2D PCA), so matching runs against the local surface
+rather than one noisy map point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+@dataclass
+class LineMatches:
+    """Lines fitted around N query points.
+
+    matched: (N,) bool, a map point within the correspondence distance.
+    centroids_xy: (N, 2) centroid of the neighbours. normals_xy: (N, 2) unit line normal.
+    line_var_m2: (N,) variance of the line's offset at the centroid.
+    """
+
+    matched: np.ndarray
+    centroids_xy: np.ndarray
+    normals_xy: np.ndarray
+    line_var_m2: np.ndarray
+
+
+def _voxel_keys(points_xy: np.ndarray, voxel_m: float) -> np.ndarray:
+    cells = np.floor(points_xy / voxel_m).astype(np.int64)
+    return (cells[:, 0] << 32) ^ (cells[:, 1] & 0xFFFFFFFF)
+
+
+class LocalMap:
+    """World-frame points (M, 2) in ``points_xy``; a point, once in, never moves."""
+
+    def __init__(
+        self, radius_m: float, voxel_m: float, points_per_voxel: int, neighbors: int
+    ) -> None:
+        self._radius_m = radius_m
+        self._voxel_m = voxel_m
+        self._per_voxel = points_per_voxel
+        self._neighbors = neighbors
+        self.points_xy = np.zeros((0, 2))
+        self._keys = np.zeros(0, dtype=np.int64)
+        self.tree: cKDTree | None = None
+
+    def __len__(self) -> int:
+        return len(self.points_xy)
+
+    def insert(self, points_world_xy: np.ndarray, sensor_xy: np.ndarray) -> None:
+        """Add one registered frame's (N, 2) world points seen from ``sensor_xy`` (2,); drop
+        points beyond the radius and points of full voxels."""
+        points = np.asarray(points_world_xy, dtype=float).reshape(-1, 2)
+        keys = _voxel_keys(points, self._voxel_m)
+        occupied, counts = np.unique(self._keys, return_counts=True)
+        slot = np.clip(np.searchsorted(occupied, keys), 0, max(len(occupied) - 1, 0))
+        full = (
+            (occupied[slot] == keys) & (counts[slot] >= self._per_voxel)
+            if len(occupied)
+            else np.zeros(len(keys), dtype=bool)
+        )
+        all_points = np.concatenate([self.points_xy, points[~full]])
+        all_keys = np.concatenate([self._keys, keys[~full]])
+        near = np.sum((all_points - sensor_xy) ** 2, axis=1) <= self._radius_m**2
+        self.points_xy, self._keys = all_points[near], all_keys[near]
+        self.tree = cKDTree(self.points_xy) if len(self.points_xy) >= 3 else None
+
+    def lines_at(self, query_xy: np.ndarray, max_distance_m: float) -> LineMatches:
+        """Fit a line to the map points nearest each of the (N, 2) query points."""
+        k = min(self._neighbors, len(self.points_xy))
+        distance, index = self.tree.query(query_xy, k=k)
+        distance, index = distance.reshape(len(query_xy), k), index.reshape(len(query_xy), k)
+        neighbours = self.points_xy[index]  # (N, k, 2)
+        centroid = neighbours.mean(axis=1)
+        local = neighbours - centroid[:, None, :]
+        sxx = np.sum(local[:, :, 0] ** 2, axis=1)
+        syy = np.sum(local[:, :, 1] ** 2, axis=1)
+        sxy = np.sum(local[:, :, 0] * local[:, :, 1], axis=1)
+        # Closed-form 2x2 eigen-decomposition: major axis angle and the smaller eigenvalue.
+        angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+        normal = np.stack([-np.sin(angle), np.cos(angle)], axis=1)
+        smallest = 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+        line_var = np.maximum(smallest, 0.0) / max(k - 2, 1) / k
+        return LineMatches(distance[:, 0] <= max_distance_m, centroid, normal, line_var)

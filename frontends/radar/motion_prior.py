@@ -1,0 +1,189 @@
+"""The motion prior of a radar rig: Doppler ego-velocity for translation, gyro for yaw.
+
+Between two radar frames the sensor is assumed to hold a constant body twist, so the step is
+the SE(2) exponential of ``[v * dt, yaw_delta]`` with ``v`` the newer frame's Doppler velocity.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from smokyslam.config import RadarOdometryConfig
+from smokyslam.frontends.radar.doppler import EgoVelocity, estimate_ego_velocity
+from smokyslam.geometry import se2_exp, wrap_angle
+from smokyslam.types import ImuSample, RadarScan
+
+NO_GYRO_YAW_SIGMA_RAD = np.pi
+"""Yaw sigma of a step without gyro samples: the prior says nothing about yaw."""
+
+
+@dataclass
+class MotionPrior:
+    """Predicted step between consecutive frames.
+
+    delta: (3,) [x_m, y_m, yaw_rad] in the earlier frame's sensor frame.
+    covariance: (3, 3) of this step alone, in the same order (what dead reckoning reports).
+    doppler: the ego-velocity estimate it came from.
+    match_covariance: (3, 3) prior covariance for scan matching: the yaw variance is the
+    heading filter's, which also carries the previous frame's yaw uncertainty.
+    """
+
+    delta: np.ndarray
+    covariance: np.ndarray
+    doppler: EgoVelocity
+    match_covariance: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.match_covariance is None:
+            self.match_covariance = self.covariance
+
+    @cached_property
+    def information(self) -> np.ndarray:
+        """(3, 3) inverse of ``match_covariance``: what scan matching weighs the prior by."""
+        return np.linalg.inv(self.match_covariance)
+
+
+class GyroIntegrator:
+    """Sums gyro z into yaw increments between radar frames.
+
+    A sample's rate is held over the interval since the previous sample (for the first one,
+    since the previous radar frame), so one sample per frame carrying ``yaw_delta / dt`` (the
+    CARMEN emulation) integrates back to ``yaw_delta``, and 100 Hz samples integrate as usual.
+    """
+
+    def __init__(self) -> None:
+        self._last_stamp_s: float | None = None
+
+    def integrate(self, samples: Iterable[ImuSample], start_s: float) -> float | None:
+        """Yaw increment (rad) from ``samples`` (time-ordered); None when there are none."""
+        yaw_rad, count = 0.0, 0
+        last = start_s if self._last_stamp_s is None else max(self._last_stamp_s, start_s)
+        for sample in samples:
+            yaw_rad += float(sample.gyro_radps[2]) * max(sample.stamp_s - last, 0.0)
+            last = sample.stamp_s
+            count += 1
+        self._last_stamp_s = last
+        return yaw_rad if count else None
+
+
+def exp_jacobian(twist: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """(3, 3) numerical Jacobian of :func:`se2_exp` at ``twist``."""
+    perturb = np.eye(3) * step
+    return ((se2_exp(twist + perturb) - se2_exp(twist - perturb)) / (2.0 * step)).T
+
+
+class HeadingFilter:
+    """Kalman filter on ``[yaw, gyro bias]``, with scan matching as a yaw measurement.
+
+    Scan matching against the local map measures the yaw relative to that map in every
+    frame; the gyro predicts it. Tracking how the two disagree over many frames estimates the
+    gyro bias, which a frame-to-frame comparison cannot see under the per-frame noise. The
+    yaw variance it predicts (the previous frame's yaw uncertainty plus the gyro step) is the
+    yaw prior the matcher should use.
+    """
+
+    def __init__(self, gyro_sigma_radps: float, bias_sigma_radps: float, bias_walk: float):
+        self.bias_radps = 0.0
+        self.covariance = np.diag([0.0, bias_sigma_radps**2])  # [yaw rad, bias rad/s]
+        self._gyro_var = gyro_sigma_radps**2
+        self._walk_var = bias_walk**2
+
+    def predict(self, dt_s: float) -> float:
+        """Propagate over one frame interval; return the predicted yaw variance (rad^2)."""
+        F = np.array([[1.0, -dt_s], [0.0, 1.0]])
+        Q = np.diag([self._gyro_var * dt_s**2, self._walk_var * dt_s])
+        self.covariance = F @ self.covariance @ F.T + Q
+        return float(self.covariance[0, 0])
+
+    def correct(self, prior_var: float, posterior_var: float, innovation_rad: float) -> None:
+        """Fold in one frame's registration: its yaw moved ``innovation_rad`` from the
+        prediction, and its variance fell from ``prior_var`` to ``posterior_var``.
+
+        The scan-only yaw measurement and its variance are recovered from that shrinkage.
+        """
+        if not 0.0 < posterior_var < prior_var * (1.0 - 1e-6):
+            return
+        shrink = 1.0 - posterior_var / prior_var
+        scan_var = 1.0 / (1.0 / posterior_var - 1.0 / prior_var)
+        innovation = innovation_rad / shrink
+        P = self.covariance
+        gain = P[:, 0] / (P[0, 0] + scan_var)
+        self.bias_radps += float(gain[1] * innovation)
+        self.covariance = P - np.outer(gain, P[0, :])
+
+
+class MotionPriorEstimator:
+    """Turns each radar frame (and the gyro samples since the previous one) into a prior.
+
+    With ``anchored`` (scan matching feeds every frame back through :meth:`correct_heading`)
+    the gyro bias is estimated and the matcher's yaw prior comes from the heading filter;
+    otherwise the prior is the plain Doppler/gyro step.
+    """
+
+    def __init__(self, config: RadarOdometryConfig, anchored: bool = False) -> None:
+        self._config = config
+        self._anchored = anchored
+        self._gyro = GyroIntegrator()
+        self._last_stamp_s: float | None = None
+        self._last_velocity = np.zeros(2)
+        self.heading = HeadingFilter(
+            np.radians(config.yaw_rate_sigma_degps),
+            np.radians(config.gyro_bias_sigma_degps),
+            np.radians(config.gyro_bias_walk_degps),
+        )
+
+    def predict(self, scan: RadarScan, imu: Iterable[ImuSample] = ()) -> MotionPrior:
+        """The step from the previous frame to ``scan`` (zero for the first frame)."""
+        config = self._config
+        points = scan.points_xy_m
+        doppler = estimate_ego_velocity(
+            np.arctan2(points[:, 1], points[:, 0]),
+            scan.doppler_mps,
+            inlier_threshold_mps=config.doppler_inlier_mps,
+            min_inliers=config.doppler_min_inliers,
+        )
+        previous = self._last_stamp_s
+        self._last_stamp_s = scan.stamp_s
+        yaw_delta = self._gyro.integrate(imu, scan.stamp_s if previous is None else previous)
+        if previous is None:
+            return MotionPrior(np.zeros(3), np.diag([1e-6, 1e-6, 1e-6]), doppler)
+        dt_s = max(scan.stamp_s - previous, 1e-6)
+        velocity_cov = doppler.covariance
+        if doppler.valid:
+            self._last_velocity = doppler.velocity_mps
+        else:
+            # Coast on the last velocity, with the uncertainty of not knowing it at all.
+            velocity_cov = np.eye(2) * max(1.0, float(self._last_velocity @ self._last_velocity))
+        twist = np.array([*(self._last_velocity * dt_s), 0.0])
+        sigma_step = config.velocity_sigma_rel * np.hypot(*twist[:2])
+        sigma_step += config.velocity_sigma_mps * dt_s
+        twist_cov = np.zeros((3, 3))
+        twist_cov[:2, :2] = velocity_cov * dt_s**2 + np.eye(2) * sigma_step**2
+        if yaw_delta is None:
+            twist_cov[2, 2] = NO_GYRO_YAW_SIGMA_RAD**2
+            anchored_yaw_var = twist_cov[2, 2]
+        else:
+            twist[2] = yaw_delta - self.heading.bias_radps * dt_s
+            twist_cov[2, 2] = (np.radians(config.yaw_rate_sigma_degps) * dt_s) ** 2
+            anchored_yaw_var = self.heading.predict(dt_s) if self._anchored else 0.0
+        J = exp_jacobian(twist)
+        anchored_cov = twist_cov.copy()
+        anchored_cov[2, 2] = max(anchored_yaw_var, twist_cov[2, 2])
+        return MotionPrior(
+            se2_exp(twist),
+            J @ twist_cov @ J.T,
+            doppler,
+            J @ anchored_cov @ J.T,
+        )
+
+    def correct_heading(
+        self, prior: MotionPrior, registered_delta: np.ndarray, covariance: np.ndarray
+    ) -> None:
+        """Feed one frame's registered step (solved with ``prior.match_covariance``) back
+        into the heading filter."""
+        innovation = float(wrap_angle(registered_delta[2] - prior.delta[2]))
+        self.heading.correct(prior.match_covariance[2, 2], float(covariance[2, 2]), innovation)

@@ -1,0 +1,196 @@
+"""CARMEN laser logs (``.log`` / ``.log.gz``) replayed as a radar rig.
+
+``FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta timestamp [host logger_timestamp]``:
+n beams over 180° (180 at 1°, 360/361 at 0.5°, derived from n), the first looking right.
+The ``x y theta`` pose on each line is the (SLAM-corrected) ground truth of ``base_link``.
+
+Timestamps in these logs are often printed at low precision or go backwards, so they are not
+used: scan i is stamped ``i / carmen.nominal_rate_hz`` seconds, and all motion (emulated
+Doppler and gyro) comes from pose differences. The logs are keyframe-subsampled: 0.1-0.9 m and
+up to 78° between scans, far coarser than a 10 Hz radar.
+
+Per scan, in this order and at one stamp: an :class:`ImuSample` whose gyro z is the emulated
+yaw increment since the previous scan divided by the nominal interval (the rate held over that
+interval; none for the first scan), a :class:`RadarScan` (emulated radar points with Doppler, or
+every valid beam when emulation is off) and a :class:`GroundTruthPose`.
+
+Malformed ``FLASER`` lines are skipped, logged and counted in ``skipped_lines``. Other message
+types (``ODOM``, ``PARAM``, ``NEFF``...) are ignored, except ``PARAM robot_frontlaser_offset``,
+the laser's forward offset on the robot.
+"""
+
+from __future__ import annotations
+
+import gzip
+import logging
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from smokyslam.config import SmokySlamConfig
+from smokyslam.errors import LogError
+from smokyslam.frontends.readers.base import LogSummary, StreamSummary
+from smokyslam.frontends.readers.carmen_emulation import (
+    BeamGeometry,
+    beam_bearings,
+    detect_no_return,
+    emulate_motion,
+    emulate_radar_points,
+)
+from smokyslam.geometry import se2_compose, se3_from_se2
+from smokyslam.types import (
+    CameraIntrinsics,
+    Extrinsics,
+    Frame,
+    GroundTruthMap,
+    GroundTruthPose,
+    ImuSample,
+    RadarScan,
+)
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass
+class LaserLog:
+    """The ``FLASER`` records of one log, all with the same beam count n.
+
+    ranges_m: (S, n) metres. poses_world_base: (S, 3) [x, y, theta]. laser_offset_m: forward
+    offset of the laser on the robot. skipped_lines: malformed ``FLASER`` lines.
+    """
+
+    ranges_m: np.ndarray
+    poses_world_base: np.ndarray
+    laser_offset_m: float
+    skipped_lines: int
+
+
+def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Ranges (n,) and pose (3,) of one split ``FLASER`` line, or None when malformed."""
+    try:
+        n = int(tokens[1])
+        if n <= 0 or len(tokens) < 2 + n + 7:
+            return None
+        values = np.array(tokens[2 : 2 + n + 3], dtype=float)
+    except (ValueError, IndexError):
+        return None
+    if not np.all(np.isfinite(values)):
+        return None
+    return values[:n], values[n:]
+
+
+def read_laser_log(path: Path) -> LaserLog:
+    """Parse every ``FLASER`` line of a CARMEN log (plain or gzip text)."""
+    opener = gzip.open if path.suffix == ".gz" else open
+    ranges, poses, skipped, offset = [], [], 0, 0.0
+    try:
+        with opener(path, "rt", errors="replace") as stream:
+            for number, line in enumerate(stream, start=1):
+                tokens = line.split()
+                if not tokens or tokens[0] not in ("FLASER", "PARAM"):
+                    continue
+                if tokens[0] == "PARAM":
+                    if len(tokens) >= 3 and tokens[1] == "robot_frontlaser_offset":
+                        offset = _float_or(tokens[2], offset)
+                    continue
+                record = _parse_flaser(tokens)
+                if record is None or (ranges and record[0].size != ranges[0].size):
+                    skipped += 1
+                    logger.debug("%s:%d: malformed FLASER line skipped", path, number)
+                    continue
+                ranges.append(record[0])
+                poses.append(record[1])
+    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+        raise LogError(f"{path}: cannot read CARMEN log ({exc})") from exc
+    if skipped:
+        logger.warning("%s: skipped %d malformed FLASER lines", path, skipped)
+    if not ranges:
+        raise LogError(f"{path}: no FLASER lines")
+    return LaserLog(np.array(ranges), np.array(poses), offset, skipped)
+
+
+def _float_or(token: str, default: float) -> float:
+    try:
+        return float(token)
+    except ValueError:
+        return default
+
+
+class CarmenReader:
+    """A CARMEN laser log as a :class:`~smokyslam.frontends.readers.base.LogReader`."""
+
+    def __init__(self, path: Path | str, config: SmokySlamConfig) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise LogError(f"{self.path}: no such log")
+        self._config = config
+        self._log = read_laser_log(self.path)
+        n_beams = self._log.ranges_m.shape[1]
+        self.beams = BeamGeometry(beam_bearings(n_beams), detect_no_return(self._log.ranges_m))
+        self.dt_s = 1.0 / config.carmen.nominal_rate_hz
+        logger.info(
+            "%s: %d scans of %d beams, no-return %.2f m",
+            self.path,
+            len(self._log.ranges_m),
+            n_beams,
+            self.beams.no_return_m,
+        )
+
+    @property
+    def skipped_lines(self) -> int:
+        """Malformed ``FLASER`` lines that were skipped."""
+        return self._log.skipped_lines
+
+    @property
+    def radar_mount(self) -> np.ndarray:
+        """Planar pose ``[x, y, yaw]`` of the laser (emulated radar) on base_link."""
+        return np.array([self._log.laser_offset_m, 0.0, 0.0])
+
+    @property
+    def stamps_s(self) -> np.ndarray:
+        """(S,) nominal scan stamps, seconds."""
+        return np.arange(len(self._log.ranges_m)) * self.dt_s
+
+    def summary(self) -> LogSummary:
+        count = len(self._log.ranges_m)
+        rate = self._config.carmen.nominal_rate_hz
+        streams = [
+            StreamSummary("FLASER", "carmen/FLASER as radar", count, rate),
+            StreamSummary("gyro (emulated)", "ImuSample", max(count - 1, 0), rate),
+            StreamSummary("FLASER pose", "GroundTruthPose", count, rate),
+        ]
+        return LogSummary(self.path, "carmen", (count - 1) * self.dt_s, 0.0, streams)
+
+    def frames(self) -> Iterator[Frame]:
+        """Gyro sample, radar scan and ground-truth pose per ``FLASER`` line (same seed, same
+        frames on every call)."""
+        config = self._config
+        rng = np.random.default_rng(config.carmen.seed)
+        poses_base = self._log.poses_world_base
+        poses_sensor = se2_compose(poses_base, self.radar_mount)
+        motion = emulate_motion(poses_sensor, self.dt_s, config.carmen, rng)
+        for i, stamp_s in enumerate(self.stamps_s):
+            if i > 0:
+                gyro = np.array([0.0, 0.0, motion.gyro_yaw_rad[i] / self.dt_s])
+                yield ImuSample(float(stamp_s), gyro, np.zeros(3))
+            points, doppler = emulate_radar_points(
+                self._log.ranges_m[i],
+                self.beams,
+                motion.velocity_mps[i],
+                config.simulation.radar,
+                config.carmen,
+                rng,
+            )
+            yield RadarScan(float(stamp_s), points, np.ones(len(points)), doppler)
+            yield GroundTruthPose(float(stamp_s), poses_base[i].copy())
+
+    def ground_truth_map(self) -> GroundTruthMap | None:
+        return None
+
+    def extrinsics(self) -> Extrinsics:
+        return Extrinsics(T_base_radar=se3_from_se2(self.radar_mount))
+
+    def camera_intrinsics(self) -> CameraIntrinsics | None:
+        return None
