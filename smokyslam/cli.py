@@ -177,6 +177,43 @@ def evaluate(
 
 
 @app.command()
+def run(
+    log: Annotated[Path, typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz) log.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    odometry: Annotated[
+        str, typer.Option(help="Odometry source: fused, radar, camera or dead-reckoning.")
+    ] = "fused",
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    config: ConfigOption = None,
+) -> None:
+    """Run SLAM/odometry on a log: trajectory (TUM, KITTI), maps, metrics and config."""
+    cfg = effective_config(config, radar_loss, camera_noise, haze)
+    from smokyslam.pipelines.run import run_log
+
+    result = run_log(log, odometry, cfg, out)
+    typer.echo(_summary_line(result.metrics))
+    typer.echo(f"wrote {result.out_dir}/")
+
+
+def _summary_line(metrics: dict) -> str:
+    parts = []
+    trajectory = metrics.get("trajectory")
+    if trajectory:
+        parts.append(
+            f"ATE {trajectory['ate_rmse_m']:.3f} m ({trajectory['ate_alignment']}, "
+            f"{trajectory['drift_pct']:.2f}% of {trajectory['path_length_m']:.1f} m), "
+            f"lost {trajectory['lost_frames']}/{trajectory['frames']} frames"
+        )
+    for name, scores in metrics.get("maps", {}).items():
+        parts.append(f"{name} error index {scores['error_index']:.3f}")
+    if metrics.get("realtime_factor"):
+        parts.append(f"{metrics['realtime_factor']:.1f}x real time")
+    return "; ".join(parts)
+
+
+@app.command()
 def bench(
     out: Annotated[Path, typer.Option("--out", "-o", help="JSON file for the numbers.")] = Path(
         "bench.json"

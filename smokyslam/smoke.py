@@ -17,11 +17,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterator
 
 import numpy as np
 
 from smokyslam.config import SmokeConfig
-from smokyslam.types import CameraFrame, Frame, RadarScan
+from smokyslam.frontends.readers.base import LogReader, LogSummary
+from smokyslam.types import (
+    CameraFrame,
+    CameraIntrinsics,
+    Extrinsics,
+    Frame,
+    GroundTruthMap,
+    RadarScan,
+)
 
 _RADAR_STREAM, _CAMERA_STREAM = 1, 2
 
@@ -90,3 +99,30 @@ class SmokeEmulator:
             image = image.copy()
             image.reshape(-1)[pixels] = np.where(salt[pixels], 255, 0).astype(np.uint8)
         return dataclasses.replace(frame, image=image)
+
+
+class SmokedLog:
+    """A log reader whose frames come out through a :class:`SmokeEmulator` (LogReader Protocol).
+
+    Everything but ``frames()`` passes through to the wrapped reader unchanged.
+    """
+
+    def __init__(self, reader: LogReader, config: SmokeConfig) -> None:
+        self.reader = reader
+        self.path = reader.path
+        self.emulator = SmokeEmulator(config)
+
+    def frames(self) -> Iterator[Frame]:
+        return (self.emulator.apply(frame) for frame in self.reader.frames())
+
+    def summary(self) -> LogSummary:
+        return self.reader.summary()
+
+    def ground_truth_map(self) -> GroundTruthMap | None:
+        return self.reader.ground_truth_map()
+
+    def extrinsics(self) -> Extrinsics:
+        return self.reader.extrinsics()
+
+    def camera_intrinsics(self) -> CameraIntrinsics | None:
+        return self.reader.camera_intrinsics()

@@ -10,7 +10,7 @@ import pytest
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.readers.carmen import CarmenReader
-from smokyslam.odometry_run import evaluate_run, run_radar_odometry
+from smokyslam.pipelines.odometry import evaluate_run, run_radar_odometry
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from radar_scenes import carmen_poses, write_carmen_log
 from smokyslam.config import SmokySlamConfig
 from smokyslam.evaluation.trajectory_io import read_tum
 from smokyslam.frontends.readers.carmen import CarmenReader
-from smokyslam.odometry_run import run_radar_odometry, write_odometry_outputs
+from smokyslam.pipelines.odometry import run_radar_odometry, write_odometry_outputs
 from smokyslam.types import GroundTruthPose
 
 

@@ -16,7 +16,7 @@ from smokyslam.evaluation.trajectory_metrics import (
 from smokyslam.types import GroundTruthMap
 
 if TYPE_CHECKING:
-    from smokyslam.odometry_run import OdometryRun
+    from smokyslam.pipelines.odometry import OdometryRun
 
 
 def plot_trajectory(

@@ -116,3 +116,17 @@ def build_radar_map(
         )
     logger.info("radar map: %d keyframes", len(mapper.keyframe_scans))
     return mapper.grid
+
+
+def radar_map_on_poses(
+    scans: Iterable[RadarScan],
+    poses_world_base: np.ndarray,
+    extrinsics: Extrinsics,
+    config: MappingConfig,
+) -> OccupancyGrid:
+    """The radar grid of scans placed at estimated base_link poses (N, 3), one per scan."""
+    mapper = get_radar_mapper(config)
+    for scan, pose_world_base in zip(scans, np.asarray(poses_world_base), strict=True):
+        levelled, pose_base_radar = level_scan(scan, extrinsics.T_base_radar)
+        mapper.insert(levelled, se2_compose(pose_world_base, pose_base_radar))
+    return mapper.grid

@@ -20,7 +20,7 @@ from smokyslam.geometry import GridSpec
 from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.grid import OccupancyGrid
 from smokyslam.outputs import OutputFolder
-from smokyslam.smoke import SmokeEmulator
+from smokyslam.smoke import SmokedLog
 from smokyslam.types import GroundTruthMap
 
 logger = logging.getLogger(__name__)
@@ -55,10 +55,9 @@ def run_truth_mapping(
     started = time.perf_counter()
     with OutputFolder(out_dir) as out:
         out.write_config(config)
-        reader = open_log(log_path, config, require=("radar", "ground_truth_pose"))
-        smoke = SmokeEmulator(config.smoke)
-        frames = (smoke.apply(frame) for frame in reader.frames())
-        grid = build_radar_map(frames, reader.extrinsics(), config.mapping)
+        log = open_log(log_path, config, require=("radar", "ground_truth_pose"))
+        reader = SmokedLog(log, config.smoke)
+        grid = build_radar_map(reader.frames(), reader.extrinsics(), config.mapping)
         cells = grid.to_cells()
         truth = reader.ground_truth_map()
         out.write_map("radar_sparse", cells, grid.spec, truth)

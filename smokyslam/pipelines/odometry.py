@@ -1,16 +1,16 @@
-"""Radar-only odometry over a whole log, and the files a run leaves behind.
+"""Odometry over a whole log, and the trajectory files a run leaves behind.
 
-``run_radar_odometry`` is the estimator loop (no files); ``write_odometry_outputs`` writes
-``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum``, ``metrics.json`` and
-``trajectory.png`` into an output folder.
+``OdometryRun`` is what any source (radar, dead reckoning, camera, fused) produced;
+``run_radar_odometry`` is the radar estimator loop (no files); ``write_odometry_outputs``
+writes ``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum``, the ``trajectory``
+part of ``metrics.json`` and ``trajectory.png`` into an output folder.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -25,6 +25,8 @@ from smokyslam.evaluation.trajectory_metrics import (
 )
 from smokyslam.frontends.radar.odometry import DeadReckoning, RadarOdometry, poses_world_base
 from smokyslam.frontends.readers.base import LogReader
+from smokyslam.geometry import interpolate_se2, se2_compose, se2_inverse
+from smokyslam.outputs import OutputFolder
 from smokyslam.types import GroundTruthMap, GroundTruthPose, ImuSample, Odometry, RadarScan
 
 logger = logging.getLogger(__name__)
@@ -36,26 +38,23 @@ RadarSource = Literal["radar", "dead-reckoning"]
 class OdometryRun:
     """What one odometry source produced over a log.
 
-    stamps_s: (N,) per processed radar frame. poses_world_sensor / poses_world_base: (N, 3)
-    in the odometry's world frame. gt_stamps_s (M,), gt_poses_world_base (M, 3): the log's
-    ground truth, empty when it has none. frames_per_s: estimator throughput (reading and
-    emulation excluded).
+    stamps_s: (N,) per processed frame. poses_world_base: (N, 3) in the odometry's world
+    frame. lost: (N,) bool, frames the source could not measure. gt_stamps_s (M,),
+    gt_poses_world_base (M, 3): the log's ground truth, empty when it has none. frames_per_s:
+    estimator throughput (reading and emulation excluded). scans / poses_world_radar: the radar
+    frames the run used and where it put the radar, for maps (empty for camera-only runs).
     """
 
     source: str
     stamps_s: np.ndarray
-    poses_world_sensor: np.ndarray
     poses_world_base: np.ndarray
-    odometry: list[Odometry]
+    lost: np.ndarray
     gt_stamps_s: np.ndarray
     gt_poses_world_base: np.ndarray
     frames_per_s: float
+    scans: list[RadarScan] = field(default_factory=list)
+    poses_world_radar: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     extra: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def lost(self) -> np.ndarray:
-        """(N,) bool: frames the source could not measure."""
-        return np.array([o.health.lost for o in self.odometry], dtype=bool)
 
     @property
     def has_ground_truth(self) -> bool:
@@ -74,12 +73,14 @@ def run_radar_odometry(
     )
     imu: list[ImuSample] = []
     outputs: list[Odometry] = []
+    scans: dict[float, RadarScan] = {}
     gt_stamps, gt_poses = [], []
     busy_s = 0.0
     for frame in reader.frames():
         if isinstance(frame, ImuSample):
             imu.append(frame)
         elif isinstance(frame, RadarScan):
+            scans[frame.stamp_s] = frame
             start = time.perf_counter()
             outputs.extend(estimator.register(frame, imu))
             busy_s += time.perf_counter() - start
@@ -95,12 +96,13 @@ def run_radar_odometry(
     run = OdometryRun(
         source=source,
         stamps_s=np.array([o.stamp_s for o in outputs]),
-        poses_world_sensor=poses_sensor,
         poses_world_base=poses_world_base(poses_sensor, reader.extrinsics().T_base_radar),
-        odometry=outputs,
+        lost=np.array([o.health.lost for o in outputs], dtype=bool),
         gt_stamps_s=np.asarray(gt_stamps, dtype=float)[order],
         gt_poses_world_base=np.asarray(gt_poses, dtype=float).reshape(-1, 3)[order],
         frames_per_s=len(outputs) / busy_s if busy_s > 0 else float("nan"),
+        scans=[scans[o.stamp_s] for o in outputs],
+        poses_world_radar=poses_sensor,
     )
     logger.info("%s odometry: %d frames at %.0f frames/s", source, len(outputs), run.frames_per_s)
     return run
@@ -125,9 +127,10 @@ def write_odometry_outputs(
     gt_map: GroundTruthMap | None = None,
 ) -> dict:
     """Write the run's trajectory files, metrics and plot (over ``gt_map`` when given) into
-    ``out_dir``; return the metrics dictionary (``trajectory`` only with ground truth)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    ``out_dir``; merge the metrics into ``metrics.json`` (NaN becomes null) and return the
+    run's part (``trajectory`` only with ground truth)."""
+    folder = OutputFolder(out_dir)
+    out = folder.root
     write_tum(out / "trajectory.tum", run.stamps_s, run.poses_world_base)
     write_kitti(out / "trajectory_kitti.txt", run.poses_world_base)
     metrics: dict = {
@@ -143,18 +146,29 @@ def write_odometry_outputs(
         result = evaluate_run(run, alignment)
         metrics["trajectory"] = result.to_dict()
         aligned = result
-    metrics = _json_safe(metrics)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, allow_nan=False) + "\n")
+    folder.update_metrics(metrics)
     from smokyslam.evaluation.trajectory_plot import plot_trajectory
 
     plot_trajectory(out / "trajectory.png", run, aligned, alignment, gt_map)
     return metrics
 
 
-def _json_safe(value: object) -> object:
-    """NaN and infinities become null, so metrics.json stays strict JSON."""
-    if isinstance(value, dict):
-        return {key: _json_safe(item) for key, item in value.items()}
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
+def anchor_to_ground_truth(run: OdometryRun) -> OdometryRun:
+    """The run moved rigidly so its first pose sits on the ground truth at that stamp.
+
+    Estimators start at the origin of their own world frame; anchoring expresses the whole
+    trajectory in the ground-truth frame (as if initialized there), so maps built on it can be
+    scored against the true map. A rigid move changes neither ATE nor RPE.
+    """
+    if not run.has_ground_truth or len(run.stamps_s) == 0:
+        return run
+    gt_start = interpolate_se2(run.gt_stamps_s, run.gt_poses_world_base, run.stamps_s[0])
+    T_truth_odom = se2_compose(gt_start, se2_inverse(run.poses_world_base[0]))
+    moved_radar = run.poses_world_radar
+    if len(moved_radar):
+        moved_radar = se2_compose(T_truth_odom, moved_radar)
+    return replace(
+        run,
+        poses_world_base=se2_compose(T_truth_odom, run.poses_world_base),
+        poses_world_radar=moved_radar,
+    )
