@@ -214,6 +214,28 @@ def _summary_line(metrics: dict) -> str:
 
 
 @app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("demo_output"),
+    duration: Annotated[float, typer.Option(min=10.0, help="Seconds of walking.")] = 60.0,
+    config: ConfigOption = None,
+) -> None:
+    """Simulate a smoky office, run SLAM on it, and write every output under --out."""
+    from smokyslam.pipelines.demo import run_demo
+    from smokyslam.progress import console
+
+    result = run_demo(out, effective_config(config), duration, on_step=console.log)
+    sim = result.simulation
+    typer.echo(
+        f"log:            {sim.log_path} ({sim.duration_s:.0f} s, {sim.wall_s:.1f} s to make)"
+    )
+    typer.echo(f"map on truth:   {result.mapping_dir}/maps/radar_sparse_vs_truth.png")
+    for run_result in result.runs:
+        typer.echo(f"{run_result.source + ':':15s} {run_result.out_dir}/")
+        typer.echo(f"{'':15s} {_summary_line(run_result.metrics)}")
+    typer.echo(f"everything is under {out}/")
+
+
+@app.command()
 def bench(
     out: Annotated[Path, typer.Option("--out", "-o", help="JSON file for the numbers.")] = Path(
         "bench.json"
