@@ -132,6 +132,42 @@ def info(
     typer.echo(format_summary(open_log(log, effective_config(config)).summary()))
 
 
+@app.command("compare")
+def compare_command(
+    log: Annotated[Path, typer.Argument(help="A log with ground truth (e.g. a simulation).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    sources: Annotated[
+        str, typer.Option(help="Comma-separated sources: camera, radar, dead-reckoning, fused.")
+    ] = "camera,radar,dead-reckoning,fused",
+    smoke: Annotated[
+        str, typer.Option(help="Comma-separated radar_loss:camera_noise levels, each in [0, 1].")
+    ] = "0:0,0.1:0.2,0.2:0.4",
+    haze: Annotated[
+        str | None,
+        typer.Option(help="Comma-separated haze densities B (1/m): each smoke level runs again."),
+    ] = None,
+    jobs: Annotated[
+        int | None,
+        typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
+    ] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Run odometry sources at several smoke levels: run folders, a table and plots."""
+    cfg = effective_config(config)
+    from smokyslam.pipelines.compare import compare, parse_smoke_levels, parse_sources
+    from smokyslam.progress import progress_bar
+
+    source_list, levels = parse_sources(sources), parse_smoke_levels(smoke, haze)
+    total = len(source_list) * len(levels)
+    with progress_bar(f"comparing {total} runs", total, unit="items") as update:
+        result = compare(log, source_list, levels, cfg, out, jobs, on_progress=update)
+    typer.echo(result.markdown_path.read_text(), nl=False)
+    typer.echo(f"wrote {result.out_dir}/ ({total} runs in {result.wall_s:.1f} s)")
+    if result.failed:
+        typer.echo(f"error: {len(result.failed)} of {total} runs failed", err=True)
+        raise typer.Exit(1)
+
+
 @app.command("map")
 def map_command(
     log: Annotated[Path, typer.Argument(help="A log with radar and ground-truth poses.")],

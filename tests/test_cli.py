@@ -28,7 +28,17 @@ def smokyslam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProces
 def test_version_and_help_on_every_command():
     out = smokyslam("--version")
     assert out.returncode == 0 and out.stdout.startswith("smokyslam ")
-    commands = ["simulate", "info", "map", "evaluate", "dump-config"]
+    commands = [
+        "simulate",
+        "info",
+        "run",
+        "compare",
+        "map",
+        "evaluate",
+        "bench",
+        "demo",
+        "dump-config",
+    ]
     for command in commands:
         assert smokyslam(command, "--help").returncode == 0, command
 

@@ -1,0 +1,249 @@
+"""``smokyslam compare``: level parsing, the run folders, the table and plots, failed runs."""
+
+import csv
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from smokyslam.config import load_config
+from smokyslam.errors import ConfigError, EstimationError, LogError
+from smokyslam.evaluation.compare_plot import aligned_trajectory
+from smokyslam.evaluation.trajectory_io import write_tum
+from smokyslam.evaluation.trajectory_metrics import Alignment, Similarity2D
+from smokyslam.pipelines import run as run_module
+from smokyslam.pipelines.compare import (
+    CompareJob,
+    CompareRow,
+    RunStatus,
+    SmokeLevel,
+    compare,
+    parse_smoke_levels,
+    parse_sources,
+    run_job,
+    run_jobs,
+)
+
+HEADER = [
+    "source",
+    "radar_loss",
+    "camera_noise",
+    "haze",
+    "ate_rmse_m",
+    "ate_alignment",
+    "drift_pct",
+    "lost_frames",
+    "realtime_factor",
+    "map",
+    "map_error_index",
+    "map_f1",
+    "status",
+    "error",
+]
+
+
+def test_smoke_levels_keep_the_numbers_as_typed():
+    levels = parse_smoke_levels("0:0, 0.1:0.2,0.2:0.40")
+    assert [level.label for level in levels] == ["r0-c0", "r0.1-c0.2", "r0.2-c0.40"]
+    assert [(lv.radar_loss, lv.camera_noise, lv.haze) for lv in levels] == [
+        (0.0, 0.0, 0.0),
+        (0.1, 0.2, 0.0),
+        (0.2, 0.4, 0.0),
+    ]
+
+
+def test_haze_values_add_hazy_copies_of_every_smoke_level():
+    levels = parse_smoke_levels("0:0,0.2:0.4", "0,0.5")  # 0 is the haze-free run
+    assert [level.label for level in levels] == [
+        "r0-c0",
+        "r0.2-c0.4",
+        "r0-c0-h0.5",
+        "r0.2-c0.4-h0.5",
+    ]
+    config = load_config(None, {"smoke": {"airlight": 150.0, "haze": 0.3}})
+    hazy = levels[3].apply(config).smoke
+    assert (hazy.radar_loss, hazy.camera_noise, hazy.haze, hazy.airlight) == (0.2, 0.4, 0.5, 150.0)
+    assert levels[0].apply(config).smoke.haze == 0.0
+    assert config.smoke.haze == 0.3  # the base config is left alone
+
+
+@pytest.mark.parametrize(
+    ("smoke", "haze", "message"),
+    [
+        ("0.1", None, "radar_loss:camera_noise"),
+        ("0:0:0", None, "radar_loss:camera_noise"),
+        ("a:b", None, "radar_loss in 'a:b' is not a number"),
+        ("-1:0", None, "radar_loss in '-1:0' must be between 0 and 1"),
+        ("2:0", None, "radar_loss in '2:0' must be between 0 and 1"),
+        ("0:1.5", None, "camera_noise in '0:1.5' must be between 0 and 1"),
+        ("nan:0", None, "must be between 0 and 1"),
+        ("1e-1:0", None, "plain decimal"),
+        ("0:0,,0.1:0.2", None, "empty items"),
+        ("", None, "empty items"),
+        ("0:0,0.0:0", None, "r0.0-c0 repeats r0-c0"),
+        ("0:0", "-0.5", "haze in '-0.5' must be 0 or more"),
+        ("0:0", "thick", "haze in 'thick' is not a number"),
+        ("0:0", "0.5,0.50", "repeats"),
+    ],
+)
+def test_bad_smoke_and_haze_items_are_config_errors(smoke, haze, message):
+    with pytest.raises(ConfigError, match=message):
+        parse_smoke_levels(smoke, haze)
+
+
+def test_sources_must_be_registered_and_distinct():
+    assert parse_sources("radar, dead-reckoning") == ["radar", "dead-reckoning"]
+    with pytest.raises(ConfigError, match="unknown odometry source 'lidar': choose from radar"):
+        parse_sources("radar,lidar")
+    with pytest.raises(ConfigError, match="twice"):
+        parse_sources("radar,radar")
+
+
+def test_the_main_map_is_visual_for_camera_and_fused_before_radar_otherwise():
+    maps = {name: {"error_index": 0.1, "occupied_f1": 0.5} for name in ("radar_sparse", "fused")}
+    level = SmokeLevel("0", "0")
+    assert (
+        CompareRow("fused", level, Path("x"), RunStatus.OK, metrics={"maps": maps}).main_map()
+        == "fused"
+    )
+    camera_maps = {"visual": maps["fused"], "radar_sparse": maps["fused"]}
+    camera = CompareRow("camera", level, Path("x"), RunStatus.OK, metrics={"maps": camera_maps})
+    assert camera.main_map() == "visual"
+    assert CompareRow("radar", level, Path("x"), RunStatus.FAILED, "boom").main_map() is None
+
+
+def _coloured_pixels(png: Path, rgb: tuple[int, int, int]) -> int:
+    image = cv2.imread(str(png))[:, :, ::-1].astype(int)
+    return int(np.count_nonzero(np.abs(image - np.array(rgb)).max(axis=2) <= 30))
+
+
+def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path):
+    out = tmp_path / "cmp"
+    # A file where one run's folder must go: that run fails inside its worker process.
+    (out / "runs").mkdir(parents=True)
+    (out / "runs" / "dead-reckoning-r0.1-c0.2").write_text("in the way")
+    config = load_config()
+    calls = []
+    result = compare(
+        office_log,
+        ["radar", "dead-reckoning"],
+        parse_smoke_levels("0:0,0.1:0.2"),
+        config,
+        out,
+        workers=2,
+        on_progress=lambda done, total, status="": calls.append((done, total)),
+    )
+    assert sorted(p.name for p in (out / "runs").iterdir()) == [
+        "dead-reckoning-r0-c0",
+        "dead-reckoning-r0.1-c0.2",
+        "radar-r0-c0",
+        "radar-r0.1-c0.2",
+    ]
+    assert calls[-1] == (4, 4) and len(calls) == 4
+    assert [(r.source, r.level.label, r.status) for r in result.rows] == [
+        ("radar", "r0-c0", "ok"),
+        ("dead-reckoning", "r0-c0", "ok"),
+        ("radar", "r0.1-c0.2", "ok"),
+        ("dead-reckoning", "r0.1-c0.2", "failed"),
+    ]
+    # Raised and caught in the worker, so the message names the folder that was in the way.
+    assert result.failed[0].error.startswith("FileExistsError: ")
+    assert "dead-reckoning-r0.1-c0.2" in result.failed[0].error
+
+    with result.csv_path.open() as stream:
+        table = list(csv.reader(stream))
+    assert table[0] == HEADER
+    rows = [dict(zip(HEADER, values, strict=True)) for values in table[1:]]
+    assert len(rows) == 4
+    for row, run in zip(rows[:3], result.rows[:3], strict=True):
+        metrics = json.loads((run.run_dir / "metrics.json").read_text())
+        trajectory, radar_map = metrics["trajectory"], metrics["maps"]["radar_sparse"]
+        assert float(row["ate_rmse_m"]) == trajectory["ate_rmse_m"]
+        assert float(row["drift_pct"]) == trajectory["drift_pct"]
+        assert int(row["lost_frames"]) == trajectory["lost_frames"]
+        assert float(row["realtime_factor"]) == metrics["realtime_factor"]
+        assert float(row["map_error_index"]) == radar_map["error_index"]
+        assert float(row["map_f1"]) == radar_map["occupied_f1"]
+        assert (row["ate_alignment"], row["map"], row["status"]) == ("se2", "radar_sparse", "ok")
+        assert 0.005 < trajectory["ate_rmse_m"] < 0.5
+        smoke = load_config(run.run_dir / "config.yaml").smoke
+        assert (smoke.radar_loss, smoke.camera_noise) == (
+            run.level.radar_loss,
+            run.level.camera_noise,
+        )
+    assert (rows[2]["radar_loss"], rows[2]["camera_noise"], rows[2]["haze"]) == ("0.1", "0.2", "0")
+    # Dropping 10% of the radar returns changes radar odometry's answer.
+    assert rows[0]["ate_rmse_m"] != rows[2]["ate_rmse_m"]
+    failed = rows[3]
+    assert failed["status"] == "failed" and "FileExistsError" in failed["error"]
+    assert failed["ate_rmse_m"] == "" and failed["map"] == ""
+
+    markdown = result.markdown_path.read_text().splitlines()
+    assert len(markdown) == 6 and markdown[0] == "| " + " | ".join(HEADER) + " |"
+    assert "| failed | FileExistsError" in markdown[5]
+    assert load_config(result.config_path) == config
+
+    for png in (result.trajectories_png, result.ate_png):
+        assert min(cv2.imread(str(png)).shape[:2]) >= 300
+        assert _coloured_pixels(png, (214, 39, 40)) > 200  # radar, tab:red
+        assert _coloured_pixels(png, (255, 127, 14)) > 100  # dead reckoning, tab:orange
+
+
+def _broken(reader, config):
+    raise EstimationError("the pose graph is degenerate")
+
+
+def _buggy(reader, config):
+    return {}["missing"]
+
+
+def test_a_run_that_raises_becomes_a_failed_row(office_log, tmp_path, monkeypatch):
+    monkeypatch.setitem(run_module.SOURCES, "broken", (_broken, ("radar",), Alignment.SE2))
+    monkeypatch.setitem(run_module.SOURCES, "buggy", (_buggy, ("radar",), Alignment.SE2))
+    level = SmokeLevel("0.1", "0.2")
+    job = CompareJob("broken", level, office_log, load_config(), tmp_path / "broken-r0.1-c0.2")
+    row = run_job(job)
+    assert (row.status, row.error, row.metrics) == ("failed", "the pose graph is degenerate", {})
+    assert "EstimationError" in (job.run_dir / "error.log").read_text()
+    # One worker runs the jobs here, in order; a bug that is no SmokySlamError is named by type.
+    buggy = CompareJob("buggy", level, office_log, load_config(), tmp_path / "buggy-r0.1-c0.2")
+    progress = []
+    rows = run_jobs([buggy, job], 1, lambda done, total, status="": progress.append(status))
+    assert [(r.source, r.error) for r in rows] == [
+        ("buggy", "KeyError: 'missing'"),
+        ("broken", "the pose graph is degenerate"),
+    ]
+    assert progress == ["buggy-r0.1-c0.2 failed", "broken-r0.1-c0.2 failed"]
+
+
+def test_a_missing_log_fails_before_any_run(tmp_path):
+    with pytest.raises(LogError, match="log not found"):
+        compare(
+            tmp_path / "none.mcap",
+            ["radar"],
+            parse_smoke_levels("0:0"),
+            load_config(),
+            tmp_path / "out",
+        )
+    assert not (tmp_path / "out").exists()
+
+
+def test_plotted_paths_are_aligned_as_their_ate_was(tmp_path):
+    stamps_s = np.linspace(0.0, 10.0, 50)
+    gt = np.column_stack([np.cos(stamps_s / 3), np.sin(stamps_s / 2), stamps_s / 5]) * 4.0
+    # A camera-like estimate: a third of the size, turned by 30 degrees, shifted.
+    similarity = Similarity2D(np.radians(30.0), np.array([1.0, -2.0]), scale=1 / 3)
+    write_tum(tmp_path / "ground_truth.tum", stamps_s, gt)
+    write_tum(tmp_path / "trajectory.tum", stamps_s, similarity.apply(gt))
+    level = SmokeLevel("0", "0")
+    errors_m = {}
+    for alignment in ("sim2", "se2"):
+        metrics = {"trajectory": {"ate_alignment": alignment}}
+        row = CompareRow("camera", level, tmp_path, RunStatus.OK, metrics=metrics)
+        aligned, truth = aligned_trajectory(row)
+        assert np.allclose(truth[:, :2], gt[:, :2], atol=1e-6)
+        errors_m[alignment] = np.sqrt(np.mean(np.sum((aligned[:, :2] - gt[:, :2]) ** 2, axis=1)))
+    assert errors_m["sim2"] < 1e-6  # scale recovered: the path lies on the truth
+    assert errors_m["se2"] > 1.0  # a rigid fit cannot undo the third
