@@ -1,0 +1,1 @@
+"""Visualization: the Rerun recording of a run (rerun is imported only here)."""
