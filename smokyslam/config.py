@@ -152,6 +152,9 @@ class RadarOdometryConfig(_Section):
     yaw_rate_sigma_degps: float = Field(1.0, gt=0.0, description="prior gyro sigma, deg/s")
     gyro_bias_sigma_degps: float = Field(0.5, ge=0.0, description="initial bias sigma, 0: off")
     gyro_bias_walk_degps: float = Field(0.001, ge=0.0, description="bias random walk /sqrt(s)")
+    heading_decorrelation_s: float = Field(
+        1.0, ge=0.0, description="registrations this close in time: one yaw measurement"
+    )
     doppler_inlier_mps: float = Field(0.1, gt=0.0, description="RANSAC inlier threshold")
     doppler_min_inliers: int = Field(4, ge=2)
     map_radius_m: float = Field(12.0, gt=0.0, description="local map keeps points this near")
@@ -202,13 +205,15 @@ class CameraOdometryConfig(_Section):
     max_corners: int = Field(300, ge=8, description="tracks kept alive (detect at keyframes)")
     quality_level: float = Field(0.01, gt=0.0, lt=1.0, description="goodFeaturesToTrack")
     min_distance_px: float = Field(8.0, gt=0.0, description="between corners")
-    lk_window_px: int = Field(21, ge=5, description="LK window side")
+    lk_window_px: int = Field(17, ge=5, description="LK window side (17: fastest measured)")
     lk_levels: int = Field(3, ge=0, description="LK pyramid levels above the image")
     fb_max_error_px: float = Field(1.0, gt=0.0, description="forward-backward LK check")
     keyframe_parallax_deg: float = Field(4.0, gt=0.0, description="median parallax: keyframe")
     min_tracked: int = Field(120, ge=8, description="fewer landmark tracks: keyframe")
     init_parallax_deg: float = Field(2.0, gt=0.0, description="median parallax to initialize")
-    min_triangulation_deg: float = Field(1.0, gt=0.0, description="ray angle of a new landmark")
+    min_triangulation_deg: float = Field(
+        1.0, gt=0.0, description="triangulate once baseline / median depth reaches tan(this)"
+    )
     essential_threshold_px: float = Field(1.0, gt=0.0, description="essential-matrix RANSAC")
     pnp_threshold_px: float = Field(2.0, gt=0.0, description="PnP RANSAC reprojection")
     min_inliers: int = Field(20, ge=6, description="fewer PnP/essential inliers: lost")
@@ -285,6 +290,33 @@ class BackendConfig(_Section):
     scale: ScaleConfig = ScaleConfig()
 
 
+class SlamConfig(_Section):
+    """The fused pipeline (``--odometry fused``): which factors feed the graph, and how."""
+
+    camera_factors: bool = Field(True, description="camera between factors (when healthy)")
+    camera_stride: int = Field(1, ge=1, description="track every n-th camera frame")
+    camera_covariance_scale: float = Field(
+        1.0, gt=0.0, description="variance multiplier on the camera's reported covariances"
+    )
+    camera_translation_sigma_rel: float = Field(
+        0.15, ge=0.0, description="camera translation sigma added per metre of step"
+    )
+    camera_consistency_chi2: float = Field(
+        11.34, gt=0.0, description="camera step vs radar step, 3 dof: larger is dropped"
+    )
+    radar_covariance_scale: float = Field(
+        1.0, gt=0.0, description="variance multiplier on the radar keyframe steps"
+    )
+    loop_closures: bool = True
+    loop_check_every: int = Field(3, ge=1, description="keyframes between loop-closure checks")
+    loop_covariance_scale: float = Field(
+        1.0, gt=0.0, description="variance multiplier on verified loop closures"
+    )
+    submap_frames: int = Field(30, ge=1, description="radar frames in a loop-closure submap")
+    submap_voxel_m: float = Field(0.1, ge=0.0, description="submap thinning, one point a voxel")
+    visual_map: bool = Field(True, description="keep camera keyframe points for maps/visual")
+
+
 class SmokySlamConfig(_Section):
     """Root configuration."""
 
@@ -297,6 +329,7 @@ class SmokySlamConfig(_Section):
     mapping: MappingConfig = MappingConfig()
     camera_odometry: CameraOdometryConfig = CameraOdometryConfig()
     backend: BackendConfig = BackendConfig()
+    slam: SlamConfig = SlamConfig()
 
 
 def _deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
