@@ -26,6 +26,7 @@ from smokyslam.pipelines.odometry import (
     run_radar_odometry,
     write_odometry_outputs,
 )
+from smokyslam.pipelines.slam import SlamRun, run_fused_slam, slam_metrics, visual_map
 from smokyslam.pipelines.truth_mapping import map_metrics
 from smokyslam.smoke import SmokedLog
 from smokyslam.types import GroundTruthMap
@@ -47,6 +48,7 @@ def _dead_reckoning(reader: LogReader, config: SmokySlamConfig) -> OdometryRun:
 SOURCES: dict[str, tuple[Estimator, tuple[str, ...], Alignment]] = {
     "radar": (_radar, ("radar",), Alignment.SE2),
     "dead-reckoning": (_dead_reckoning, ("radar",), Alignment.SE2),
+    "fused": (run_fused_slam, ("radar",), Alignment.SE2),
 }
 
 
@@ -103,3 +105,19 @@ def _write_maps(
     out.write_map("radar_sparse", cells, grid.spec, gt_map, run.poses_world_base[:, :2])
     if gt_map is not None and run.has_ground_truth:
         out.update_metrics({"maps": {"radar_sparse": map_metrics(cells, grid.spec, gt_map)}})
+    if isinstance(run, SlamRun):
+        _write_slam_outputs(out, run, config, gt_map)
+
+
+def _write_slam_outputs(
+    out: OutputFolder, run: SlamRun, config: SmokySlamConfig, gt_map: GroundTruthMap | None
+) -> None:
+    """``maps/visual`` on the fused poses (scored with a true map) and the graph's numbers."""
+    out.update_metrics(slam_metrics(run))
+    grid = visual_map(run, config)
+    if grid is None:
+        return
+    cells = grid.to_cells()
+    out.write_map("visual", cells, grid.spec, gt_map, run.poses_world_base[:, :2])
+    if gt_map is not None and run.has_ground_truth:
+        out.update_metrics({"maps": {"visual": map_metrics(cells, grid.spec, gt_map)}})

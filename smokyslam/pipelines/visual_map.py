@@ -1,0 +1,90 @@
+"""The visual map of a fused run: camera landmarks, metric, flattened on the final poses.
+
+At each camera keyframe the camera's inlier landmarks are moved into the camera frame (which
+undoes the camera odometry's own drift), scaled to metres with the current metric scale and
+kept in base_link with their stamp. Only at the end are they placed in the world with the
+fused base pose at that stamp, so a loop closure that moved the poses moves the map with them;
+then they are flattened (height band, >= N points per cell, free space from the cameras).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from smokyslam.config import MappingConfig
+from smokyslam.frontends.camera.odometry import CameraOdometryResult
+from smokyslam.geometry import interpolate_se2, se2_compose, se3_inverse, transform_points_2d
+from smokyslam.mapping.flatten import flatten_points
+from smokyslam.mapping.grid import OccupancyGrid, get_occupancy_grid
+
+
+@dataclass
+class VisualKeyframes:
+    """Camera keyframe landmarks in base_link, metres, by stamp.
+
+    T_base_camera: (4, 4) camera mount (optical axes). stamps_s: per keyframe.
+    points_base: per keyframe, (M, 3) points in base_link at that stamp (z up from the floor).
+    """
+
+    T_base_camera: np.ndarray
+    stamps_s: list[float] = field(default_factory=list)
+    points_base: list[np.ndarray] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.stamps_s)
+
+    def add(self, result: CameraOdometryResult, scale_m: float) -> None:
+        """Keep ``result``'s landmarks (camera odometry world, camera units) as metric points
+        in base_link; ``scale_m`` is metres per camera unit of the camera's current map."""
+        landmarks = np.asarray(result.landmarks_world, dtype=float).reshape(-1, 3)
+        if len(landmarks) == 0:
+            return
+        T_camera_world = se3_inverse(result.T_world_camera)
+        points_camera = (landmarks @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]) * scale_m
+        R, t = self.T_base_camera[:3, :3], self.T_base_camera[:3, 3]
+        self.stamps_s.append(result.stamp_s)
+        self.points_base.append(points_camera @ R.T + t)
+
+    def world_points(
+        self, stamps_s: np.ndarray, poses_world_base: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Every kept point in the world, placed by the (N, 3) base poses at (N,) sorted stamps.
+
+        Returns ``(points_xyz_m (P, 3), camera_xy_m (P, 2))``: world points and the world
+        position of the camera that saw each one.
+        """
+        if not self.stamps_s or len(stamps_s) == 0:
+            return np.zeros((0, 3)), np.zeros((0, 2))
+        poses = interpolate_se2(stamps_s, poses_world_base, np.asarray(self.stamps_s))
+        camera_in_base = self.T_base_camera[:2, 3]
+        points, cameras = [], []
+        for pose, local in zip(poses, self.points_base, strict=True):
+            world = local.copy()
+            world[:, :2] = transform_points_2d(pose, local[:, :2])
+            points.append(world)
+            camera_xy = se2_compose(pose, np.r_[camera_in_base, 0.0])[:2]
+            cameras.append(np.broadcast_to(camera_xy, (len(local), 2)))
+        return np.concatenate(points), np.concatenate(cameras)
+
+
+def visual_map_on_poses(
+    visual: VisualKeyframes,
+    stamps_s: np.ndarray,
+    poses_world_base: np.ndarray,
+    config: MappingConfig,
+) -> OccupancyGrid:
+    """The flattened visual grid of ``visual`` placed on (N, 3) base poses at (N,) stamps."""
+    grid = get_occupancy_grid(config)
+    points, cameras = visual.world_points(stamps_s, poses_world_base)
+    if len(points):
+        flatten_points(
+            grid,
+            points,
+            cameras,
+            config.flatten_min_height_m,
+            config.flatten_max_height_m,
+            config.min_points_per_cell,
+        )
+    return grid

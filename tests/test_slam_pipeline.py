@@ -1,0 +1,262 @@
+"""Fused SLAM: keyframe steps and their covariances, camera factors, the online pipeline."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from smokyslam.backends.camera_gate import get_camera_gate
+from smokyslam.backends.scale import get_scale_estimator
+from smokyslam.config import SmokySlamConfig, load_config
+from smokyslam.frontends.camera.odometry import (
+    CameraHealth,
+    CameraOdometryResult,
+    TrackingStatus,
+)
+from smokyslam.frontends.camera.pose import camera_from_planar, planar_from_camera
+from smokyslam.frontends.camera.preprocess import ImageQuality
+from smokyslam.frontends.readers.registry import open_log
+from smokyslam.geometry import (
+    se2_between,
+    se2_compose,
+    se2_exp,
+    se2_inverse,
+    se2_log,
+    se3_from_se2,
+)
+from smokyslam.pipelines.camera_factors import CameraFactorMaker
+from smokyslam.pipelines.keyframes import RadarKeyframer, compose_with_covariance, conjugate
+from smokyslam.pipelines.odometry import evaluate_run
+from smokyslam.pipelines.run import run_log
+from smokyslam.pipelines.slam import run_fused_slam
+from smokyslam.smoke import SmokedLog
+from smokyslam.types import CameraFrame, Odometry, OdometryHealth, RadarScan
+
+MOUNT_RADAR = np.array([0.1, 0.0, 0.0])
+
+
+def _sampled_covariance(mean: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Covariance of ``Log(mean^-1 * sample)``: the tangent (right) convention."""
+    xi = se2_log(se2_between(mean, samples))
+    return np.cov(xi.T)
+
+
+def test_composed_step_covariance_matches_sampling():
+    rng = np.random.default_rng(0)
+    a, b = np.array([0.3, 0.1, 0.4]), np.array([0.2, -0.05, -0.3])
+    cov_a = np.diag([0.02, 0.01, 0.03]) ** 2
+    cov_b = np.array([[4e-4, 1e-4, 0.0], [1e-4, 2e-4, 5e-5], [0.0, 5e-5, 9e-4]])
+    delta, covariance = compose_with_covariance(a, cov_a, b, cov_b)
+    n = 100_000
+    a_samples = se2_compose(a, se2_exp(rng.multivariate_normal(np.zeros(3), cov_a, n)))
+    b_samples = se2_compose(b, se2_exp(rng.multivariate_normal(np.zeros(3), cov_b, n)))
+    sampled = _sampled_covariance(delta, se2_compose(a_samples, b_samples))
+    np.testing.assert_allclose(delta, se2_compose(a, b))
+    np.testing.assert_allclose(covariance, sampled, atol=0.05 * np.abs(sampled).max())
+
+
+def test_conjugate_moves_a_radar_step_and_its_covariance_to_base_link():
+    rng = np.random.default_rng(1)
+    mount = np.array([0.1, -0.05, 0.3])
+    radar_a, radar_b = np.array([1.0, 2.0, 0.5]), np.array([1.3, 2.1, 0.8])
+    step = se2_between(radar_a, radar_b)
+    cov = np.diag([0.01, 0.02, 0.01]) ** 2
+    delta, covariance = conjugate(step, cov, mount)
+    base_a, base_b = (
+        se2_compose(radar_a, se2_inverse(mount)),
+        se2_compose(radar_b, se2_inverse(mount)),
+    )
+    np.testing.assert_allclose(delta, se2_between(base_a, base_b), atol=1e-12)
+    steps = se2_compose(step, se2_exp(rng.multivariate_normal(np.zeros(3), cov, 100_000)))
+    moved = se2_compose(se2_compose(mount, steps), se2_inverse(mount))
+    sampled = _sampled_covariance(delta, moved)
+    np.testing.assert_allclose(covariance, sampled, atol=0.05 * np.abs(sampled).max())
+
+
+def _odometry(stamp_s: float, pose: np.ndarray, delta: np.ndarray, sigma: float) -> Odometry:
+    health = OdometryHealth(inliers=30, fitness=0.02, lost=False)
+    return Odometry(stamp_s, pose, delta, np.eye(3) * sigma**2, health)
+
+
+def _scan(stamp_s: float) -> RadarScan:
+    points = np.array([[2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [3.0, -1.0, 0.0]])
+    return RadarScan(stamp_s, points, np.zeros(3), np.zeros(3))
+
+
+def test_keyframer_gate_steps_and_frame_offsets_rebuild_the_trajectory():
+    # The radar walks 0.06 m a frame while turning 0.02 rad: a keyframe every 4th frame
+    # (>= 0.2 m), with base_link 0.1 m behind the radar.
+    T_base_radar = se3_from_se2(MOUNT_RADAR)
+    keyframer = RadarKeyframer(T_base_radar, translation_m=0.2, rotation_rad=np.pi / 8)
+    step = np.array([0.06, 0.0, 0.02])
+    pose, keyframes = np.zeros(3), []
+    truth = []
+    for i in range(21):
+        delta = step if i else np.zeros(3)
+        pose = se2_compose(pose, delta)
+        truth.append(se2_compose(pose, se2_inverse(MOUNT_RADAR)))
+        keyframe = keyframer.add(_odometry(0.1 * i, pose, delta, 0.01), _scan(0.1 * i))
+        if keyframe is not None:
+            keyframes.append(keyframe)
+    assert [k.index for k in keyframes] == list(range(6))
+    assert [round(k.stamp_s, 6) for k in keyframes] == [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
+    keyframe_poses = [truth[0]]
+    for k in keyframes[1:]:
+        keyframe_poses.append(se2_compose(keyframe_poses[-1], k.delta))
+        # Four independent steps of 0.01 m: at least 4x one step's variance along x.
+        assert k.covariance[0, 0] == pytest.approx(4e-4, rel=0.05)
+        assert k.covariance[2, 2] == pytest.approx(4e-4, rel=1e-9)
+    rebuilt = se2_compose(
+        np.array(keyframe_poses)[keyframer.frame_keyframe], np.array(keyframer.frame_offset)
+    )
+    np.testing.assert_allclose(rebuilt, np.array(truth), atol=1e-12)
+    # Submap: the recent frames' points in the latest base_link; the newest one lies as seen.
+    submap = keyframer.submap()
+    np.testing.assert_allclose(submap[-3:], _scan(0).points_xyz_m[:, :2] + MOUNT_RADAR[:2])
+
+
+def _camera_result(stamp_s: float, pose: np.ndarray, noise: float = 0.0, map_id: int = 0):
+    quality = ImageQuality(noise, 0.2, 0.1, 0, False)
+    return CameraOdometryResult(
+        stamp_s=stamp_s,
+        status=TrackingStatus.TRACKING,
+        pose_world_camera=pose,
+        T_world_camera=camera_from_planar(pose),
+        keyframe_id=0,
+        relative_pose=np.zeros(3),
+        covariance=np.diag([1e-4, 1e-4, 1e-6]),
+        health=CameraHealth(tracked=200, landmarks=150, inliers=140, inlier_ratio=0.93),
+        quality=quality,
+        is_keyframe=False,
+        reinitialized=False,
+        reinitializations=map_id,
+        landmarks_world=np.zeros((0, 3)),
+    )
+
+
+def _camera_scene(noise: float = 0.0, yaw_jump_at_s: float | None = None):
+    """A base_link arc (0.5 m/s, 0.2 rad/s), radar keyframes every 0.4 s, and a camera at
+    15 Hz seeing it in units 2.5x smaller, from 0.05 m ahead of base_link."""
+    config = SmokySlamConfig()
+    T_base_camera = np.eye(4)
+    T_base_camera[:3, :3] = camera_from_planar(np.zeros(3))[:3, :3]
+    T_base_camera[:3, 3] = [0.05, 0.0, 1.2]
+    mount = planar_from_camera(T_base_camera)
+    maker = CameraFactorMaker(
+        T_base_camera,
+        get_camera_gate(config.backend.camera_gate),
+        get_scale_estimator(config.backend.scale),
+        consistency_chi2=11.34,
+    )
+
+    def base(t):
+        return se2_exp(np.array([0.5, 0.0, 0.2]) * t)
+
+    camera_t = np.arange(0.0, 6.0, 1 / 15)
+    for t in camera_t:
+        pose = se2_compose(base(t), mount)
+        pose[:2] /= 2.5
+        if yaw_jump_at_s is not None and t >= yaw_jump_at_s:
+            pose[2] += 0.2
+        maker.add(_camera_result(t, pose, noise))
+    outcomes = []
+    for t in np.arange(0.4, 5.6, 0.4):
+        true_delta = se2_between(base(t - 0.4), base(t))
+        cov = np.diag([0.01, 0.01, 0.003]) ** 2
+        outcomes.append((true_delta, maker.factor(t - 0.4, t, true_delta, cov)))
+    return maker, outcomes
+
+
+def test_camera_factor_becomes_metric_in_base_link_once_the_scale_is_known():
+    maker, outcomes = _camera_scene()
+    factors = [f for _, f in outcomes]
+    min_pairs = SmokySlamConfig().backend.scale.min_pairs
+    assert all(f is None for f in factors[: min_pairs - 1])
+    assert all(f is not None for f in factors[min_pairs - 1 :])
+    assert maker.scale_m == pytest.approx(2.5, rel=1e-3)
+    for true_delta, factor in outcomes[min_pairs - 1 :]:
+        np.testing.assert_allclose(factor.delta, true_delta, atol=2e-3)
+        assert factor.weight == 1.0 and np.all(np.linalg.eigvalsh(factor.covariance) > 0)
+
+
+def test_camera_factors_are_dropped_when_noisy_or_inconsistent_with_radar():
+    maker, outcomes = _camera_scene(noise=0.6)
+    assert all(f is None for _, f in outcomes) and maker.outcomes["gated"] == len(outcomes)
+    maker, outcomes = _camera_scene(yaw_jump_at_s=3.1)
+    assert maker.outcomes["inconsistent"] == 1  # the pair over the 0.2 rad jump
+    assert outcomes[7][1] is None and outcomes[8][1] is not None
+
+
+# ---------------------------------------------------------------- the pipeline on a log
+
+
+@pytest.fixture(scope="module")
+def runs(office_log, tmp_path_factory):
+    config = load_config()
+    root = tmp_path_factory.mktemp("runs")
+    return {
+        source: run_log(office_log, source, config, root / source) for source in ("radar", "fused")
+    }
+
+
+def test_fused_run_writes_every_output(runs):
+    out = runs["fused"].out_dir
+    for name in ("trajectory.tum", "trajectory_kitti.txt", "ground_truth.tum", "config.yaml"):
+        assert (out / name).stat().st_size > 0
+    for name in ("radar_sparse", "visual"):
+        assert {p.suffix for p in (out / "maps").glob(f"{name}.*")} >= {".pgm", ".yaml"}
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["odometry"]["source"] == "fused"
+    assert metrics["duration_s"] == pytest.approx(30.0, abs=0.2)
+    assert metrics["realtime_factor"] == pytest.approx(
+        metrics["duration_s"] / metrics["wall_s"], rel=1e-9
+    )
+    assert set(metrics["maps"]) == {"radar_sparse", "visual"}
+    assert 0.0 < metrics["maps"]["visual"]["occupied_precision"] <= 1.0
+    factors = metrics["factors"]
+    assert factors["radar"] == metrics["keyframes"] - 1 > 50
+    assert factors["camera"] > 10
+    assert metrics["trajectory"]["lost_frames"] == 0
+    assert len(np.loadtxt(out / "trajectory_kitti.txt")) == metrics["trajectory"]["frames"]
+
+
+def test_fused_is_not_worse_than_radar_alone_on_a_clean_log(runs):
+    fused = runs["fused"].metrics["trajectory"]["ate_rmse_m"]
+    radar = runs["radar"].metrics["trajectory"]["ate_rmse_m"]
+    assert fused <= 1.1 * radar
+
+
+class _BlindCamera:
+    """A log reader whose images are black between ``start_s`` and ``end_s``."""
+
+    def __init__(self, reader, start_s: float, end_s: float) -> None:
+        self._reader, self._start_s, self._end_s = reader, start_s, end_s
+
+    def __getattr__(self, name):
+        return getattr(self._reader, name)
+
+    def frames(self):
+        for frame in self._reader.frames():
+            if isinstance(frame, CameraFrame) and self._start_s <= frame.stamp_s < self._end_s:
+                frame = dataclasses.replace(frame, image=np.zeros_like(frame.image))
+            yield frame
+
+
+def test_camera_factors_disappear_while_the_camera_is_blind(office_log, runs):
+    config = load_config()
+    reader = _BlindCamera(SmokedLog(open_log(office_log, config), config.smoke), 10.0, 20.0)
+    run = run_fused_slam(reader, config)
+    stamps = run.keyframe_stamps_s
+    blind = (stamps >= 10.0) & (stamps < 20.0)
+    assert blind.sum() >= 15 and not run.keyframe_camera[blind].any()
+    assert run.keyframe_camera[stamps < 10.0].sum() > 5
+    assert run.keyframe_camera[stamps >= 20.0].sum() >= 3  # back, with a fresh scale
+    assert run.camera_weight[(run.stamps_s > 10.2) & (run.stamps_s < 20.0)].max() == 0.0
+    assert not run.lost.any()
+    steps = np.linalg.norm(np.diff(run.poses_world_base[:, :2], axis=0), axis=1)
+    assert steps.max() < 0.2  # the trajectory goes on through the blind segment
+    blind_ate = evaluate_run(run).ate_rmse_m
+    assert blind_ate <= 1.1 * runs["radar"].metrics["trajectory"]["ate_rmse_m"] + 0.02
