@@ -20,6 +20,7 @@ from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.mapping.build import radar_map_on_poses
 from smokyslam.outputs import OutputFolder
+from smokyslam.pipelines.camera_only import CameraRun, camera_visual_map, run_camera_odometry
 from smokyslam.pipelines.odometry import (
     OdometryRun,
     anchor_to_ground_truth,
@@ -48,6 +49,7 @@ def _dead_reckoning(reader: LogReader, config: SmokySlamConfig) -> OdometryRun:
 SOURCES: dict[str, tuple[Estimator, tuple[str, ...], Alignment]] = {
     "radar": (_radar, ("radar",), Alignment.SE2),
     "dead-reckoning": (_dead_reckoning, ("radar",), Alignment.SE2),
+    "camera": (run_camera_odometry, ("camera_image",), Alignment.SIM2),
     "fused": (run_fused_slam, ("radar",), Alignment.SE2),
 }
 
@@ -98,6 +100,8 @@ def _write_maps(
     gt_map: GroundTruthMap | None,
 ) -> None:
     """``maps/radar_sparse`` from the run's radar poses; scored when there is a true map."""
+    if isinstance(run, CameraRun):
+        _write_camera_map(out, run, reader, config, gt_map)
     if not run.scans:
         return
     grid = radar_map_on_poses(run.scans, run.poses_world_base, reader.extrinsics(), config.mapping)
@@ -107,6 +111,26 @@ def _write_maps(
         out.update_metrics({"maps": {"radar_sparse": map_metrics(cells, grid.spec, gt_map)}})
     if isinstance(run, SlamRun):
         _write_slam_outputs(out, run, config, gt_map)
+
+
+def _write_camera_map(
+    out: OutputFolder,
+    run: CameraRun,
+    reader: LogReader,
+    config: SmokySlamConfig,
+    gt_map: GroundTruthMap | None,
+) -> None:
+    """``maps/visual`` of a camera-only run (metric through the Sim(2) alignment)."""
+    grid, scale = camera_visual_map(run, reader.extrinsics().T_base_camera, config)
+    out.update_metrics(
+        {"odometry": {"reinitializations": run.reinitializations, "visual_map_scale": scale}}
+    )
+    if grid is None:
+        return
+    cells = grid.to_cells()
+    out.write_map("visual", cells, grid.spec, gt_map)
+    if gt_map is not None and run.has_ground_truth:
+        out.update_metrics({"maps": {"visual": map_metrics(cells, grid.spec, gt_map)}})
 
 
 def _write_slam_outputs(
