@@ -222,13 +222,22 @@ def run(
     radar_loss: RadarLossOption = None,
     camera_noise: CameraNoiseOption = None,
     haze: HazeOption = None,
+    rerun: Annotated[
+        Path | None, typer.Option("--rerun", help="Also write a Rerun recording (.rrd) here.")
+    ] = None,
     config: ConfigOption = None,
 ) -> None:
     """Run SLAM/odometry on a log: trajectory (TUM, KITTI), maps, metrics and config."""
     cfg = effective_config(config, radar_loss, camera_noise, haze)
+    from smokyslam.frontends.readers.registry import open_log
     from smokyslam.pipelines.run import run_log
+    from smokyslam.progress import progress_bar
 
-    result = run_log(log, odometry, cfg, out)
+    duration_s = open_log(log, cfg).summary().duration_s
+    with progress_bar(f"{odometry} on {log.name}", duration_s) as update:
+        result = run_log(
+            log, odometry, cfg, out, on_progress=lambda t, s: update(t, status=s), rerun_path=rerun
+        )
     typer.echo(_summary_line(result.metrics))
     typer.echo(f"wrote {result.out_dir}/")
 

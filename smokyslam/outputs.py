@@ -51,6 +51,8 @@ class OutputFolder:
     def __init__(self, root: Path | str) -> None:
         self.root = Path(root)
         self.root.mkdir(parents=True, exist_ok=True)
+        self.maps: dict[str, tuple[np.ndarray, GridSpec]] = {}
+        """Every map written so far: name -> (trinary cells, grid spec)."""
         self._log_handler: logging.Handler | None = None
 
     def path(self, *parts: str) -> Path:
@@ -80,6 +82,7 @@ class OutputFolder:
     ) -> Path:
         """``maps/NAME.{pgm,yaml,png}`` and, with ground truth, ``maps/NAME_vs_truth.png``."""
         yaml_path = save_map(self.path("maps", f"{name}.yaml"), cells, spec)
+        self.maps[name] = (cells, spec)
         if truth is not None or trajectory_xy_m is not None:
             render_map_png(
                 self.path("maps", f"{name}_vs_truth.png"), cells, spec, truth, trajectory_xy_m

@@ -24,7 +24,7 @@ from smokyslam.frontends.camera.pose import planar_from_camera
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.geometry import se2_compose
 from smokyslam.mapping.grid import OccupancyGrid
-from smokyslam.pipelines.odometry import OdometryRun
+from smokyslam.pipelines.odometry import OdometryRun, ProgressCallback
 from smokyslam.pipelines.visual_map import VisualKeyframes, visual_map_on_poses
 from smokyslam.types import CameraFrame, GroundTruthPose
 
@@ -39,7 +39,9 @@ class CameraRun(OdometryRun):
     reinitializations: int = 0
 
 
-def run_camera_odometry(reader: LogReader, config: SmokySlamConfig) -> CameraRun:
+def run_camera_odometry(
+    reader: LogReader, config: SmokySlamConfig, on_progress: ProgressCallback | None = None
+) -> CameraRun:
     """Track every camera frame of ``reader``; one pose per frame, lost frames flagged."""
     intrinsics = reader.camera_intrinsics()
     if intrinsics is None:
@@ -60,6 +62,10 @@ def run_camera_odometry(reader: LogReader, config: SmokySlamConfig) -> CameraRun
             reinitializations = result.reinitializations
             if result.is_keyframe and len(result.landmarks_world):
                 keyframes.append(result)
+            if on_progress is not None:
+                on_progress(
+                    result.stamp_s, f"camera {result.status.value}, {result.health.tracked} tracks"
+                )
         elif isinstance(frame, GroundTruthPose):
             gt_stamps.append(frame.stamp_s)
             gt_poses.append(frame.pose_world_base)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
@@ -32,6 +33,9 @@ from smokyslam.types import GroundTruthMap, GroundTruthPose, ImuSample, Odometry
 logger = logging.getLogger(__name__)
 
 RadarSource = Literal["radar", "dead-reckoning"]
+
+ProgressCallback = Callable[[float, str], None]
+"""Called by estimators as they go: (stamp_s of the frame just processed, health text)."""
 
 
 @dataclass
@@ -62,7 +66,10 @@ class OdometryRun:
 
 
 def run_radar_odometry(
-    reader: LogReader, config: SmokySlamConfig, source: RadarSource = "radar"
+    reader: LogReader,
+    config: SmokySlamConfig,
+    source: RadarSource = "radar",
+    on_progress: ProgressCallback | None = None,
 ) -> OdometryRun:
     """Run radar odometry (``radar``: prior + scan matching) or the Doppler/gyro baseline
     (``dead-reckoning``) over every radar frame of ``reader``."""
@@ -82,9 +89,13 @@ def run_radar_odometry(
         elif isinstance(frame, RadarScan):
             scans[frame.stamp_s] = frame
             start = time.perf_counter()
-            outputs.extend(estimator.register(frame, imu))
+            finished = estimator.register(frame, imu)
             busy_s += time.perf_counter() - start
+            outputs.extend(finished)
             imu = []
+            if on_progress is not None and finished:
+                health = finished[-1].health
+                on_progress(frame.stamp_s, f"radar inliers {health.inliers}")
         elif isinstance(frame, GroundTruthPose):
             gt_stamps.append(frame.stamp_s)
             gt_poses.append(frame.pose_world_base)

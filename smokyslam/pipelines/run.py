@@ -23,6 +23,7 @@ from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.camera_only import CameraRun, camera_visual_map, run_camera_odometry
 from smokyslam.pipelines.odometry import (
     OdometryRun,
+    ProgressCallback,
     anchor_to_ground_truth,
     run_radar_odometry,
     write_odometry_outputs,
@@ -31,18 +32,23 @@ from smokyslam.pipelines.slam import SlamRun, run_fused_slam, slam_metrics, visu
 from smokyslam.pipelines.truth_mapping import map_metrics
 from smokyslam.smoke import SmokedLog
 from smokyslam.types import GroundTruthMap
+from smokyslam.viz.rerun_recorder import Recorder, open_recorder
 
 logger = logging.getLogger(__name__)
 
-Estimator = Callable[[LogReader, SmokySlamConfig], OdometryRun]
+Estimator = Callable[[LogReader, SmokySlamConfig, ProgressCallback | None], OdometryRun]
 
 
-def _radar(reader: LogReader, config: SmokySlamConfig) -> OdometryRun:
-    return run_radar_odometry(reader, config, "radar")
+def _radar(
+    reader: LogReader, config: SmokySlamConfig, on_progress: ProgressCallback | None = None
+) -> OdometryRun:
+    return run_radar_odometry(reader, config, "radar", on_progress)
 
 
-def _dead_reckoning(reader: LogReader, config: SmokySlamConfig) -> OdometryRun:
-    return run_radar_odometry(reader, config, "dead-reckoning")
+def _dead_reckoning(
+    reader: LogReader, config: SmokySlamConfig, on_progress: ProgressCallback | None = None
+) -> OdometryRun:
+    return run_radar_odometry(reader, config, "dead-reckoning", on_progress)
 
 
 # source -> (estimator, streams the log must have, how its trajectory is aligned for the ATE)
@@ -65,9 +71,18 @@ class RunResult:
 
 
 def run_log(
-    log_path: Path | str, source: str, config: SmokySlamConfig, out_dir: Path | str
+    log_path: Path | str,
+    source: str,
+    config: SmokySlamConfig,
+    out_dir: Path | str,
+    on_progress: ProgressCallback | None = None,
+    rerun_path: Path | str | None = None,
 ) -> RunResult:
-    """Run ``source`` over the log at ``log_path`` and write its outputs into ``out_dir``."""
+    """Run ``source`` over the log at ``log_path`` and write its outputs into ``out_dir``.
+
+    on_progress: (stamp_s, health text) as frames are processed. rerun_path: also write a
+    Rerun recording (``.rrd``) of the run there.
+    """
     if source not in SOURCES:
         raise ConfigError(f"unknown odometry source '{source}': choose from {', '.join(SOURCES)}")
     estimator, required, alignment = SOURCES[source]
@@ -75,10 +90,11 @@ def run_log(
     with OutputFolder(out_dir) as out:
         out.write_config(config)
         reader = SmokedLog(open_log(log_path, config, require=required), config.smoke)
-        run = anchor_to_ground_truth(estimator(reader, config))
+        run = anchor_to_ground_truth(estimator(reader, config, on_progress))
         gt_map = reader.ground_truth_map()
         write_odometry_outputs(run, out.root, alignment, gt_map)
         _write_maps(out, run, reader, config, gt_map)
+        _record(open_recorder(rerun_path), run, reader, gt_map, out)
         wall_s = time.perf_counter() - started
         duration_s = reader.summary().duration_s
         metrics = out.update_metrics(
@@ -90,6 +106,23 @@ def run_log(
         )
     logger.info("%s run on %s: %.1f s of log in %.1f s", source, log_path, duration_s, wall_s)
     return RunResult(source, out.root, metrics, run)
+
+
+def _record(
+    recorder: Recorder,
+    run: OdometryRun,
+    reader: LogReader,
+    gt_map: GroundTruthMap | None,
+    out: OutputFolder,
+) -> None:
+    """The run, its maps and the ground truth into a Rerun recording (or nowhere)."""
+    recorder.log_ground_truth(gt_map, run.gt_stamps_s, run.gt_poses_world_base)
+    recorder.log_trajectory(
+        run.source, run.stamps_s, run.poses_world_base, run.scans, reader.extrinsics()
+    )
+    for name, (cells, spec) in out.maps.items():
+        recorder.log_map(name, cells, spec)
+    recorder.close()
 
 
 def _write_maps(

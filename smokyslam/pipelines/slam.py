@@ -37,7 +37,7 @@ from smokyslam.frontends.camera.odometry import CameraOdometry, CameraOdometryRe
 from smokyslam.frontends.radar.odometry import RadarOdometry
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.pipelines.fusion import FusedSlam
-from smokyslam.pipelines.odometry import OdometryRun
+from smokyslam.pipelines.odometry import OdometryRun, ProgressCallback
 from smokyslam.pipelines.visual_map import VisualKeyframes, visual_map_on_poses
 from smokyslam.types import (
     CameraFrame,
@@ -49,8 +49,6 @@ from smokyslam.types import (
 )
 
 logger = logging.getLogger(__name__)
-
-ProgressCallback = Callable[[float, str], None]
 
 
 @dataclass
