@@ -191,11 +191,11 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
         assert _coloured_pixels(png, (255, 127, 14)) > 100  # dead reckoning, tab:orange
 
 
-def _broken(reader, config):
+def _broken(reader, config, on_progress=None):
     raise EstimationError("the pose graph is degenerate")
 
 
-def _buggy(reader, config):
+def _buggy(reader, config, on_progress=None):
     return {}["missing"]
 
 
