@@ -335,11 +335,12 @@ class SmokySlamConfig(_Section):
     slam: SlamConfig = SlamConfig()
 
 
-def _deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+def deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """A copy of ``base`` with ``override`` merged in; nested mappings merge key by key."""
     merged = dict(base)
     for key, value in override.items():
         if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = _deep_update(merged[key], value)
+            merged[key] = deep_update(merged[key], value)
         else:
             merged[key] = value
     return merged
@@ -375,7 +376,7 @@ def load_config(
             raise ConfigError(f"{path}: top level must be a mapping of sections")
         data = loaded
     if overrides:
-        data = _deep_update(data, overrides)
+        data = deep_update(data, overrides)
     try:
         return SmokySlamConfig.model_validate(data)
     except ValidationError as exc:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from smokyslam.config import SmokySlamConfig, write_config
+from smokyslam.config import SmokySlamConfig, deep_update, write_config
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import save_map
 from smokyslam.mapping.render import render_map_png
@@ -21,16 +21,6 @@ from smokyslam.types import GroundTruthMap
 METRICS_FILE = "metrics.json"
 CONFIG_FILE = "config.yaml"
 RUN_LOG_FILE = "run.log"
-
-
-def _merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
-    merged = dict(base)
-    for key, value in update.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = _merge(merged[key], value)
-        else:
-            merged[key] = value
-    return merged
 
 
 def _jsonable(value: Any) -> Any:
@@ -68,7 +58,7 @@ class OutputFolder:
         """Merge ``metrics`` into ``metrics.json`` (nested keys merge) and return the whole."""
         target = self.path(METRICS_FILE)
         current = json.loads(target.read_text()) if target.is_file() else {}
-        merged = _jsonable(_merge(current, metrics))
+        merged = _jsonable(deep_update(current, metrics))
         target.write_text(json.dumps(merged, indent=2) + "\n")
         return merged
 
