@@ -1,10 +1,13 @@
-"""Small hand-made worlds and exact geometry helpers for the simulated-sensor tests."""
+"""Small hand-made worlds, a robot-style floor plan and exact geometry helpers for sim tests."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
 from smokyslam.geometry import GridSpec
+from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN, save_map
 from smokyslam.sim.world import World, box_world
 
 
@@ -48,3 +51,23 @@ def free_poses(world: World, n: int, rng: np.random.Generator, clearance_m: floa
         if distance_to_occupied(world, p[None])[0] > clearance_m:
             poses.append([p[0], p[1], rng.uniform(-np.pi, np.pi)])
     return np.array(poses)
+
+
+def write_robot_floorplan(yaml_path: Path, seed: int = 0, resolution_m: float = 0.05) -> Path:
+    """A 12 x 8 m flat as a robot maps it: 1-pixel walls with 15 % missed pixels, speckle,
+    unknown outside the walls and an unexplored blob. An interior wall at x = 6 m has a 1 m door
+    at y in (2, 3) m. Map origin (-1, -1): the flat spans x in (0, 12), y in (0, 8) m.
+    """
+    rng = np.random.default_rng(seed)
+    rows, cols = round(10.0 / resolution_m), round(14.0 / resolution_m)
+    y, x = (np.mgrid[0:rows, 0:cols] + 0.5) * resolution_m - 1.0
+    inside = (x > 0.0) & (x < 12.0) & (y > 0.0) & (y < 8.0)
+    cells = np.full((rows, cols), UNKNOWN, dtype=np.int8)
+    cells[inside] = FREE
+    edge = resolution_m
+    wall = inside & ((x < edge) | (x > 12.0 - edge) | (y < edge) | (y > 8.0 - edge))
+    wall |= inside & (np.abs(x - 6.0) < 0.5 * edge) & ~((y > 2.0) & (y < 3.0))
+    cells[wall & (rng.random(wall.shape) > 0.15)] = OCCUPIED
+    cells[inside & (rng.random(wall.shape) < 0.002)] = OCCUPIED
+    cells[(x - 9.0) ** 2 + (y - 6.5) ** 2 < 0.3] = UNKNOWN
+    return save_map(yaml_path, cells, GridSpec((-1.0, -1.0), resolution_m, cells.shape))

@@ -9,7 +9,8 @@ import pytest
 from smokyslam.config import TopicsConfig
 from smokyslam.errors import MessageError
 from smokyslam.frontends.readers.rosbag import RosbagReader
-from smokyslam.rosmsg import MessageBuilder, radar_scan_from_pointcloud2, typestore_for
+from smokyslam.rosmsg import MessageBuilder, typestore_for
+from smokyslam.rosmsg_decode import radar_scan_from_pointcloud2
 from smokyslam.sim.recorder import LogWriter
 from smokyslam.types import RadarScan
 

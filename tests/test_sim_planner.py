@@ -7,12 +7,13 @@ import math
 import numpy as np
 import pytest
 from scipy.ndimage import distance_transform_edt, label
-from test_sim_worlds import write_robot_floorplan
+from sim_scenes import write_robot_floorplan
 
 from smokyslam.config import SimulationConfig, TrajectoryConfig
 from smokyslam.errors import ConfigError, WorldError
 from smokyslam.geometry import wrap_angle
-from smokyslam.sim.planner import SAMPLE_RATE_HZ, clearance_map_m, plan_walk
+from smokyslam.sim.planner import SAMPLE_RATE_HZ, plan_walk
+from smokyslam.sim.walk_graph import clearance_map_m
 from smokyslam.sim.world import box_world
 from smokyslam.sim.worlds import build_world, generate_world
 

@@ -31,18 +31,16 @@ from rosbags.rosbag2 import ReaderError as ReaderError2
 from smokyslam.config import TopicsConfig
 from smokyslam.errors import LogError, MessageError, TopicError
 from smokyslam.frontends.readers.base import LogSummary, StreamSummary
-from smokyslam.rosmsg import (
-    STREAM_MSGTYPES,
+from smokyslam.rosmsg import STREAM_MSGTYPES, header_stamp_ns, typestore_for
+from smokyslam.rosmsg_decode import (
     depth_from_msg,
     extrinsics_from_tf,
     ground_truth_map_from_msg,
     ground_truth_pose_from_msg,
-    header_stamp_ns,
     image_from_msg,
     imu_from_msg,
     intrinsics_from_camera_info,
     radar_scan_from_pointcloud2,
-    typestore_for,
 )
 from smokyslam.types import CameraFrame, CameraIntrinsics, Extrinsics, Frame, GroundTruthMap
 

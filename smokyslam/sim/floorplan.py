@@ -18,7 +18,8 @@ from smokyslam.config import SimulationConfig
 from smokyslam.errors import WorldError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN, load_map
-from smokyslam.sim.planner import clearance_map_m, start_clearance_m
+from smokyslam.sim.planner import start_clearance_m
+from smokyslam.sim.walk_graph import clearance_map_m
 from smokyslam.sim.world import World
 
 logger = logging.getLogger(__name__)

@@ -1,10 +1,7 @@
 """Walking paths: a smooth, timed closed tour of a World, walked forwards like a person.
 
-1. Walkable cells: clearance >= ``clearance_m`` + 1.5 cells, connected to the start.
-2. Stops: the start, then open spots (clearance maxima with room for a loop) >= 3 m apart.
-3. Tours: cheapest insertion + 2-opt on grid distances, one per number of stops, so a short
-   walk stays near the start and a long one visits everything (and repeats if need be).
-4. Legs: Dijkstra on the 8-connected grid, dearer near walls so paths keep to the middle.
+Steps 1-4 (walkable cells, stops, tours, legs) are in :mod:`smokyslam.sim.walk_graph`; then:
+
 5. Where the walker turns back (> 100 deg at a stop) it walks a teardrop loop around the stop.
 6. Smoothing until the curvature allows ``min_speed`` within the turn-rate limit, pushing the
    path back out wherever it comes closer than ``clearance_m`` + 1 cell to a wall.
@@ -12,8 +9,7 @@
    fits at full speed is chosen and its cruise speed bisected so the walk lasts ``duration_s``.
 
 The walk ends where it began and never stops: speed stays within [min_speed, max_speed] and the
-heading is the direction of motion. Clearance is the distance transform of the free space
-(cell centre to the nearest occupied cell centre), metres.
+heading is the direction of motion.
 """
 
 from __future__ import annotations
@@ -22,20 +18,13 @@ import logging
 
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
-from scipy.ndimage import (
-    distance_transform_edt,
-    gaussian_filter1d,
-    label,
-    maximum_filter,
-    maximum_filter1d,
-)
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from smokyslam.config import TrajectoryConfig
-from smokyslam.errors import ConfigError, WorldError
+from smokyslam.errors import ConfigError
 from smokyslam.geometry import wrap_angle
 from smokyslam.sim.trajectory import Trajectory
+from smokyslam.sim.walk_graph import WalkGrid, WalkLegs, growing_tours, tour_stops, walk_clearance_m
 from smokyslam.sim.world import World
 
 logger = logging.getLogger(__name__)
@@ -46,16 +35,8 @@ _TURN_MARGIN = 0.95  # planned yaw rates stay 5 % under the limit
 _SPEED_MARGIN = 0.01  # planned speeds stay 1 % inside [min_speed, max_speed]
 _PREFERRED_SPEED = 0.75  # of max_speed: repeated tours are walked near this pace
 _LOOP_TURN_RAD = np.radians(100.0)  # sharper turns at a waypoint become teardrop loops
-_WAYPOINT_SPACING_M = 3.0
-_MAX_WAYPOINTS = 30
 _TANGENT_BACK_M = 1.5  # a teardrop leaves the leg this far before its waypoint
 _DS_M = 0.05  # polyline spacing while smoothing
-_COST_REF_M, _COST_WEIGHT = 1.2, 3.0  # grid steps with clearance c cost 1 + w * (1 - c / ref)
-
-
-def clearance_map_m(world: World) -> np.ndarray:
-    """(rows, cols) metres from each cell centre to the nearest occupied cell centre (0 inside)."""
-    return distance_transform_edt(~world.occupied) * world.spec.resolution_m
 
 
 def turn_radius_m(config: TrajectoryConfig) -> float:
@@ -68,140 +49,9 @@ def loop_radius_m(config: TrajectoryConfig) -> float:
     return 1.3 * turn_radius_m(config)
 
 
-def walk_clearance_m(config: TrajectoryConfig, resolution_m: float) -> float:
-    """Clearance of the grid cells paths may use: ``clearance_m`` plus 1.5 cells for smoothing."""
-    return config.clearance_m + 1.5 * resolution_m
-
-
 def start_clearance_m(config: TrajectoryConfig, resolution_m: float) -> float:
     """Clearance a start or waypoint needs for a loop around it."""
     return loop_radius_m(config) + walk_clearance_m(config, resolution_m)
-
-
-class _Grid:
-    """The walkable grid graph from the start, with Dijkstra distances from the waypoints."""
-
-    def __init__(self, world: World, config: TrajectoryConfig) -> None:
-        if world.start_pose is None:
-            raise WorldError(f"world '{world.name}' has no start pose")
-        self.spec = world.spec
-        res = world.spec.resolution_m
-        self.clearance = clearance_map_m(world)
-        walkable = (self.clearance >= walk_clearance_m(config, res)) & world.known
-        ix, iy = world.spec.cells_of(np.asarray(world.start_pose[:2])[None])[0]
-        inside = bool(world.spec.inside(np.array([[ix, iy]]))[0])
-        if not (inside and walkable[iy, ix]):
-            have = self.clearance[iy, ix] if inside else 0.0
-            raise WorldError(
-                f"start pose of world '{world.name}' is {have:.2f} m from a wall; "
-                f"a walk needs {walk_clearance_m(config, res):.2f} m"
-            )
-        labels, _ = label(walkable, structure=np.ones((3, 3)))
-        self.walkable = labels == labels[iy, ix]
-        self.start_cell = (iy, ix)
-        self.node_of = np.full(walkable.shape, -1, dtype=np.int64)
-        cells = np.argwhere(self.walkable)
-        self.node_of[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
-        self.cells = cells
-        cost = 1.0 + _COST_WEIGHT * np.clip(1.0 - self.clearance / _COST_REF_M, 0.0, None)
-        rows, cols, weights = [], [], []
-        for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
-            a = cells
-            b = a + np.array([dy, dx])
-            ok = (b[:, 0] < walkable.shape[0]) & (b[:, 1] >= 0) & (b[:, 1] < walkable.shape[1])
-            a, b = a[ok], b[ok]
-            ok = self.walkable[b[:, 0], b[:, 1]]
-            a, b = a[ok], b[ok]
-            step = np.hypot(dy, dx) * res
-            rows.append(self.node_of[a[:, 0], a[:, 1]])
-            cols.append(self.node_of[b[:, 0], b[:, 1]])
-            weights.append(step * 0.5 * (cost[a[:, 0], a[:, 1]] + cost[b[:, 0], b[:, 1]]))
-        n = len(cells)
-        self.graph = csr_matrix(
-            (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
-        )
-
-    def waypoints(self, needed_m: float) -> np.ndarray:
-        """(K, 2) cells [iy, ix], start first, then open spots >= needed_m clear, spread out."""
-        res = self.spec.resolution_m
-        # At most ~_MAX_WAYPOINTS stops: big halls get sparser ones (Dijkstra runs once per stop).
-        area_m2 = len(self.cells) * res**2
-        spacing = round(max(_WAYPOINT_SPACING_M, np.sqrt(area_m2 / _MAX_WAYPOINTS)) / res)
-        c = np.where(self.walkable, self.clearance, 0.0)
-        peaks = (c >= needed_m) & (c >= maximum_filter(c, size=max(3, spacing // 3)))
-        cand = np.argwhere(peaks)
-        cand = cand[np.argsort(-c[cand[:, 0], cand[:, 1]], kind="stable")]
-        chosen = [np.array(self.start_cell)]
-        for cell in cand:
-            if np.min(np.hypot(*(np.array(chosen) - cell).T)) >= spacing:
-                chosen.append(cell)
-        return np.array(chosen)
-
-    def legs(self, waypoint_cells: np.ndarray) -> _Legs:
-        nodes = self.node_of[waypoint_cells[:, 0], waypoint_cells[:, 1]]
-        dist, pred = dijkstra(self.graph, directed=False, indices=nodes, return_predecessors=True)
-        return _Legs(self, nodes, dist[:, nodes], pred)
-
-
-class _Legs:
-    """Shortest grid paths between waypoints, as (M, 2) world polylines, extracted on demand."""
-
-    def __init__(self, grid: _Grid, nodes: np.ndarray, cost: np.ndarray, pred: np.ndarray):
-        self.grid, self.nodes, self.cost, self.pred = grid, nodes, cost, pred
-        self._cache: dict[tuple[int, int], np.ndarray] = {}
-
-    def path(self, i: int, j: int) -> np.ndarray:
-        if (i, j) not in self._cache:
-            chain = [int(self.nodes[j])]
-            while chain[-1] != self.nodes[i]:  # loop over path length, not cells
-                chain.append(int(self.pred[i, chain[-1]]))
-            cells = self.grid.cells[chain[::-1]]
-            self._cache[(i, j)] = self.grid.spec.centres_of(cells[:, ::-1])
-            self._cache[(j, i)] = self._cache[(i, j)][::-1]
-        return self._cache[(i, j)]
-
-
-def _two_opt(cost: np.ndarray, tour: list[int]) -> list[int]:
-    """Reverse the best segment until no reversal shortens the closed tour (symmetric costs)."""
-    while len(tour) > 1:
-        cycle = np.array([0, *tour, 0])
-        i = np.arange(1, len(cycle) - 1)
-        before, first, last, after = cycle[i - 1], cycle[i], cycle[i], cycle[i + 1]
-        delta = (
-            cost[before[:, None], last[None, :]]
-            + cost[first[:, None], after[None, :]]
-            - cost[before, first][:, None]
-            - cost[last, after][None, :]
-        )
-        delta[np.tril_indices(len(i))] = 0.0
-        a, b = np.unravel_index(int(np.argmin(delta)), delta.shape)
-        if delta[a, b] > -1e-9:
-            break
-        tour = tour[:a] + tour[a : b + 1][::-1] + tour[b + 1 :]
-    return tour
-
-
-def _growing_tours(cost: np.ndarray, rng: np.random.Generator) -> list[list[int]]:
-    """Closed tours from waypoint 0: ``tours[j]`` visits j waypoints, each tour a superset of the
-    previous one (cheapest insertion, then 2-opt), so short walks stay near the start.
-    """
-    k = len(cost)
-    tours, tour = [[]], []
-    left = list(range(1, k))
-    while left:
-        cycle = np.array([0, *tour, 0])
-        a, b, w = cycle[:-1][None, :], cycle[1:][None, :], np.array(left)[:, None]
-        detour = (cost[a, w] + cost[w, b] - cost[a, b]).min(axis=1)
-        best = left.pop(int(np.argmin(detour)))
-        edge = int(np.argmin(cost[cycle[:-1], best] + cost[best, cycle[1:]] - cost[a[0], b[0]]))
-        tour = _two_opt(cost, [*tour[:edge], best, *tour[edge:]])
-        tours.append(tour[::-1] if rng.random() < 0.5 else tour)
-    return tours
-
-
-def _sequence(tours: list[list[int]], c: int) -> list[int]:
-    """Stops of the c-th walk in growing order: the start, then ``tours[c]``."""
-    return [0, *tours[c]]
 
 
 def _arc_lengths(path: np.ndarray) -> np.ndarray:
@@ -332,7 +182,7 @@ class _Walk:
 class _TourBuilder:
     """Turns a waypoint sequence into a smooth closed path (with loops where it turns back)."""
 
-    def __init__(self, grid: _Grid, legs: _Legs, cells: np.ndarray, config: TrajectoryConfig):
+    def __init__(self, grid: WalkGrid, legs: WalkLegs, cells: np.ndarray, config: TrajectoryConfig):
         self.grid, self.legs, self.config = grid, legs, config
         self.points = grid.spec.centres_of(cells[:, ::-1])
         self.gradient = np.stack(np.gradient(grid.clearance)[::-1], axis=-1)  # [d/dx, d/dy]
@@ -451,16 +301,16 @@ def plan_walk(world: World, duration_s: float, seed: int, config: TrajectoryConf
     if not duration_s > 0:
         raise ConfigError(f"walk duration must be positive, got {duration_s}")
     rng = np.random.default_rng(seed)
-    grid = _Grid(world, config)
+    grid = WalkGrid(world, config)
     cells = grid.waypoints(start_clearance_m(config, world.spec.resolution_m))
     legs = grid.legs(cells)
-    tours = _growing_tours(legs.cost, rng)
+    tours = growing_tours(legs.cost, rng)
     builder = _TourBuilder(grid, legs, cells, config)
     walks: dict[int, _Walk] = {}
 
     def walk(c: int) -> _Walk:
         if c not in walks:
-            walks[c] = builder.walk(_sequence(tours, c))
+            walks[c] = builder.walk(tour_stops(tours, c))
         return walks[c]
 
     def fits(c: int) -> bool:
@@ -479,7 +329,7 @@ def plan_walk(world: World, duration_s: float, seed: int, config: TrajectoryConf
         if lap.feasible and fewest <= most:  # take the number of laps nearest a natural pace
             natural = float(np.clip(_PREFERRED_SPEED * config.max_speed_mps, lap.v_min, lap.v_max))
             laps = int(np.clip(round(duration_s / lap.duration_s(natural)), fewest, most))
-            logger.debug("walk: stops %s, %d x %.1f m", _sequence(tours, c), laps, lap.length_m)
+            logger.debug("walk: stops %s, %d x %.1f m", tour_stops(tours, c), laps, lap.length_m)
             return lap.sample(duration_s, lap.cruise_for(duration_s / laps), laps)
     logger.warning("a %.1f s walk is too short to return to the start", duration_s)
     return walk(0).sample(duration_s, walk(0).v_max)
