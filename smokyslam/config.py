@@ -394,6 +394,3 @@ def write_config(config: SmokySlamConfig, path: Path | str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(config_to_yaml(config))
     return path
-
-
-SourceName = Literal["camera", "radar", "dead-reckoning", "fused"]

@@ -31,6 +31,12 @@ def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
 # ---------------------------------------------------------------- SE(2)
 
 
+def rotation_2d(yaw_rad: float) -> np.ndarray:
+    """(2, 2) rotation matrix of a planar yaw."""
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, -s], [s, c]])
+
+
 def se2_matrix(x_m: float, y_m: float, yaw_rad: float) -> np.ndarray:
     """(3, 3) homogeneous matrix of a planar pose."""
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
@@ -104,9 +110,7 @@ def se2_log(pose: np.ndarray) -> np.ndarray:
 def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
     """Map (N, 2) points through the planar pose ``[x, y, yaw]`` (child frame -> parent frame)."""
     points_xy = np.asarray(points_xy, dtype=float).reshape(-1, 2)
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    R = np.array([[c, -s], [s, c]])
-    return points_xy @ R.T + np.asarray(pose[:2], dtype=float)
+    return points_xy @ rotation_2d(pose[2]).T + np.asarray(pose[:2], dtype=float)
 
 
 def interpolate_se2(

@@ -22,7 +22,6 @@ Message layouts written by smokyslam:
 from __future__ import annotations
 
 import itertools
-import logging
 from functools import cache
 from typing import Any
 
@@ -44,8 +43,6 @@ from smokyslam.types import (
     ImuSample,
     RadarScan,
 )
-
-logger = logging.getLogger(__name__)
 
 FRAME_MAP, FRAME_BASE, FRAME_RADAR, FRAME_CAMERA = "map", "base_link", "radar", "camera"
 

@@ -72,3 +72,8 @@ def test_grid_spec_cells_and_centres_round_trip():
     np.testing.assert_array_equal(spec.inside(cells), [True, True, True, False])
     np.testing.assert_allclose(spec.centres_of(np.array([[0, 0]])), [[-0.95, 2.05]])
     assert spec.extent_m == pytest.approx((-1.0, 3.0, 2.0, 5.0))
+
+
+@given(st.floats(-np.pi, np.pi))
+def test_rotation_2d_is_the_rotation_block_of_se2_matrix(yaw):
+    np.testing.assert_allclose(g.rotation_2d(yaw), g.se2_matrix(0.0, 0.0, yaw)[:2, :2])

@@ -24,7 +24,7 @@ import numpy as np
 from smokyslam.config import RadarOdometryConfig
 from smokyslam.frontends.radar.local_map import LineMatches, LocalMap
 from smokyslam.frontends.radar.motion_prior import MotionPrior
-from smokyslam.geometry import se2_compose, transform_points_2d, wrap_angle
+from smokyslam.geometry import rotation_2d, se2_compose, transform_points_2d, wrap_angle
 
 
 @dataclass
@@ -50,22 +50,17 @@ REFIT_M = 0.03
 """Refit a frame's lines once its points may have moved this far (metres)."""
 
 
-def _rotation(yaw_rad: float) -> np.ndarray:
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s], [s, c]])
-
-
 def _delta(previous: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """``se2_between`` without wrapping the yaw (the solver works on unwrapped yaws)."""
     delta = np.empty(3)
-    delta[:2] = _rotation(previous[2]).T @ (pose[:2] - previous[:2])
+    delta[:2] = rotation_2d(previous[2]).T @ (pose[:2] - previous[:2])
     delta[2] = pose[2] - previous[2]
     return delta
 
 
 def _prior_jacobians(previous: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(3, 3) Jacobians of :func:`_delta` with respect to ``previous`` and ``pose``."""
-    Rt = _rotation(previous[2]).T
+    Rt = rotation_2d(previous[2]).T
     c, s = np.cos(previous[2]), np.sin(previous[2])
     d_previous = np.zeros((3, 3))
     d_previous[:2, :2] = -Rt

@@ -19,7 +19,7 @@ from enum import StrEnum
 import numpy as np
 
 from smokyslam.errors import EstimationError
-from smokyslam.geometry import interpolate_se2, se2_between, wrap_angle
+from smokyslam.geometry import interpolate_se2, rotation_2d, se2_between, wrap_angle
 
 
 class Alignment(StrEnum):
@@ -40,8 +40,7 @@ class Similarity2D:
     def apply(self, poses: np.ndarray) -> np.ndarray:
         """(N, 3) poses mapped into the target frame (positions scaled, yaws rotated)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
-        c, s = np.cos(self.yaw_rad), np.sin(self.yaw_rad)
-        xy = self.scale * poses[:, :2] @ np.array([[c, -s], [s, c]]).T + self.translation_m
+        xy = self.scale * poses[:, :2] @ rotation_2d(self.yaw_rad).T + self.translation_m
         return np.column_stack([xy, wrap_angle(poses[:, 2] + self.yaw_rad)])
 
 
@@ -60,8 +59,7 @@ def umeyama_2d(source_xy: np.ndarray, target_xy: np.ndarray, with_scale: bool) -
     yaw = float(np.arctan2(cross, dot))
     variance = float(np.sum(ds**2))
     scale = float(np.hypot(cross, dot) / variance) if with_scale and variance > 0 else 1.0
-    c, s = np.cos(yaw), np.sin(yaw)
-    translation = mu_t - scale * np.array([[c, -s], [s, c]]) @ mu_s
+    translation = mu_t - scale * rotation_2d(yaw) @ mu_s
     return Similarity2D(yaw, translation, scale)
 
 
