@@ -86,6 +86,9 @@ class CameraModelConfig(_Section):
     fx: float = 220.0
     fy: float = 220.0
     pixel_noise_sigma: float = 2.0
+    supersample: int = Field(
+        1, ge=1, le=4, description="samples per pixel along each axis (anti-aliasing)"
+    )
     depth_scale: int = Field(2, ge=1, description="depth is logged at 1/depth_scale resolution")
 
 
@@ -219,6 +222,16 @@ class CameraOdometryConfig(_Section):
     min_inliers: int = Field(20, ge=6, description="fewer PnP/essential inliers: lost")
     window_keyframes: int = Field(10, ge=3, description="keyframes bundle-adjusted together")
     planar_motion: bool = Field(True, description="keep the camera level at constant height")
+    floor_scale: bool = Field(
+        True, description="hold the floor's depth below the camera constant (planar motion only)"
+    )
+    floor_scale_gain: float = Field(
+        0.3, gt=0.0, le=1.0, description="share of the floor's scale error corrected per keyframe"
+    )
+    floor_gate: float = Field(
+        0.1, gt=0.0, lt=1.0, description="floor landmarks lie within this fraction of its depth"
+    )
+    floor_min_points: int = Field(8, ge=3, description="fewer floor landmarks: no correction")
     impulse_filter_fraction: float = Field(
         0.005, ge=0.0, le=1.0, description="impulse estimate above it: replace impulses"
     )

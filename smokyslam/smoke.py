@@ -46,6 +46,11 @@ class SmokeEmulator:
     def __init__(self, config: SmokeConfig) -> None:
         self.config = config
 
+    @property
+    def needs_depth(self) -> bool:
+        """Whether camera frames need their depth image (haze does)."""
+        return self.config.haze > 0.0
+
     def apply(self, frame: Frame) -> Frame:
         """A smoky copy of a RadarScan or CameraFrame; other frames are returned as they are."""
         if isinstance(frame, RadarScan):
@@ -126,3 +131,13 @@ class SmokedLog:
 
     def camera_intrinsics(self) -> CameraIntrinsics | None:
         return self.reader.camera_intrinsics()
+
+
+def split_smoke(reader: LogReader) -> tuple[LogReader, SmokeEmulator | None]:
+    """The clean reader behind a :class:`SmokedLog` and its emulator (None for any other
+    reader), for a pipeline that smokes frames where it uses them: only the camera frames it
+    tracks, in the process that tracks them. Smoke is seeded per frame, so the frames come out
+    exactly as the SmokedLog would have given them."""
+    if isinstance(reader, SmokedLog):
+        return reader.reader, reader.emulator
+    return reader, None

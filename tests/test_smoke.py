@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from smokyslam.config import SmokeConfig
-from smokyslam.smoke import SmokeEmulator
+from smokyslam.smoke import SmokedLog, SmokeEmulator, split_smoke
 from smokyslam.types import CameraFrame, GroundTruthPose, ImuSample, RadarScan
 
 
@@ -122,3 +122,32 @@ def test_smoke_levels_are_nested_so_more_smoke_degrades_the_same_log_further():
     ]
     assert noisy[0].sum() == 100 and noisy[1].sum() == 400
     assert np.all(noisy[1][noisy[0]])
+
+
+class _ListReader:
+    path = "list"
+
+    def __init__(self, frames: list) -> None:
+        self._frames = frames
+
+    def frames(self):
+        return iter(self._frames)
+
+
+def test_split_smoke_gives_the_same_frames_as_the_smoked_log() -> None:
+    frames = [_scan(40, 0.1), _grey(128, 0.15, np.full((240, 320), 3.0, np.float32))]
+    config = SmokeConfig(radar_loss=0.3, camera_noise=0.2, haze=0.4)
+    smoked = SmokedLog(_ListReader(frames), config)
+    clean, emulator = split_smoke(smoked)
+    assert list(clean.frames()) == frames and emulator.needs_depth
+    for expected, frame in zip(smoked.frames(), clean.frames(), strict=True):
+        again = emulator.apply(frame)
+        assert type(again) is type(expected) and again.stamp_s == expected.stamp_s
+        if isinstance(again, RadarScan):
+            assert len(again) == len(expected) == 28
+            np.testing.assert_array_equal(again.points_xyz_m, expected.points_xyz_m)
+        else:
+            np.testing.assert_array_equal(again.image, expected.image)
+            assert (again.image == 255).sum() + (again.image == 0).sum() >= 0.2 * 240 * 320
+    plain = _ListReader(frames)
+    assert split_smoke(plain) == (plain, None)

@@ -50,8 +50,7 @@ class LocalMap:
 
     def landmarks_world(self) -> np.ndarray:
         """(N, 3) every landmark kept so far: those of finished tracks, then the live ones."""
-        alive = self.tracks.landmark_world[self.tracks.has_landmark]
-        return np.vstack([np.zeros((0, 3)), *self._archive, alive])
+        return np.vstack([np.zeros((0, 3)), *self._archive, self.live_landmarks()])
 
     def drop(self, keep: np.ndarray, archive: bool = True) -> None:
         """Remove tracks where the (N,) bool ``keep`` is False, archiving their landmarks."""
@@ -59,6 +58,19 @@ class LocalMap:
         if archive and gone.any():
             self._archive.append(self.tracks.landmark_world[gone])
         self.tracks.keep(keep)
+
+    def live_landmarks(self) -> np.ndarray:
+        """(N, 3) world points of the tracks that have a landmark now."""
+        return self.tracks.landmark_world[self.tracks.has_landmark]
+
+    def rescale(self, centre_world: np.ndarray, factor: float) -> None:
+        """Scale the map (landmarks, keyframe positions, baselines) by ``factor`` about the
+        (3,) world point ``centre_world``; poses keep their orientation."""
+        tracks = self.tracks
+        tracks.landmark_world = centre_world + factor * (tracks.landmark_world - centre_world)
+        tracks.baseline = tracks.baseline * factor
+        for T in self.keyframes.values():
+            T[:3, 3] = centre_world + factor * (T[:3, 3] - centre_world)
 
     def reset(self, T_world_camera: np.ndarray) -> None:
         """Archive the map and start an empty one whose first keyframe sits at this pose."""

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from smokyslam.config import CameraOdometryConfig
+from smokyslam.frontends.camera.floor_scale import FloorScale
 from smokyslam.frontends.camera.initializer import start_two_view
 from smokyslam.frontends.camera.landmarks import angle_between_deg, project
 from smokyslam.frontends.camera.local_map import LocalMap
@@ -121,6 +122,7 @@ class CameraOdometry:
         self._preprocessor = Preprocessor(config)
         self._tracker = LKTracker(config)
         self._map = LocalMap(self.K, config)
+        self._floor = FloorScale(config)
         self._status = TrackingStatus.INITIALIZING
         self._T = camera_from_planar(np.zeros(3))
         self._velocity = np.zeros(3)  # planar body-frame motion per second
@@ -285,7 +287,18 @@ class CameraOdometry:
     def _make_keyframe(self, image: np.ndarray) -> None:
         """Keyframe here: the map triangulates and adjusts; then new corners, anchored here."""
         self._T = self._map.add_keyframe(self._T)
+        self._hold_floor_scale()
         self._detect(image)
+
+    def _hold_floor_scale(self) -> None:
+        """Rescale the map about the camera so the floor stays at its reference depth."""
+        if not (self.config.floor_scale and self.config.planar_motion):
+            return
+        factor = self._floor.correction(self._map.live_landmarks())
+        if factor != 1.0:
+            self._map.rescale(self._T[:3, 3].copy(), factor)
+            self._velocity[:2] *= factor
+            self._speed *= factor
 
     def _detect(self, image: np.ndarray) -> None:
         """New corners in the new keyframe; every track is anchored (tracked from) here."""
@@ -298,6 +311,7 @@ class CameraOdometry:
     def _restart(self, image: np.ndarray, stamp_s: float, T_world_camera: np.ndarray) -> None:
         """Drop the map; make this frame the reference view of a new two-view start."""
         self._map.reset(T_world_camera)
+        self._floor.restart()
         self._reference_stamp_s = stamp_s
         self._detect(image)
 

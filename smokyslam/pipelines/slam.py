@@ -9,7 +9,9 @@ keyframe's final estimate) and the maps are built last, on the final poses: ever
 that moved the poses has moved the maps with them.
 
 The camera tracks in a worker process (``slam.camera_process``), fed in log order; the backend
-still sees the messages in log order, so results do not depend on timing. As with any spawned
+still sees the messages in log order, so results do not depend on timing. Emulated smoke is
+applied where a frame is used: radar scans here, camera frames in the worker, and only the
+camera frames the pipeline tracks (every ``slam.camera_stride``-th). As with any spawned
 process, a script calling this at import time needs the ``if __name__ == "__main__":`` guard.
 
 Doppler and gyro enter only through the radar odometry's step: it already solved them jointly
@@ -39,6 +41,7 @@ from smokyslam.frontends.readers.base import LogReader
 from smokyslam.pipelines.fusion import FusedSlam
 from smokyslam.pipelines.odometry import OdometryRun, ProgressCallback
 from smokyslam.pipelines.visual_map import VisualKeyframes, visual_map_on_poses
+from smokyslam.smoke import SmokeEmulator, split_smoke
 from smokyslam.types import (
     CameraFrame,
     CameraIntrinsics,
@@ -90,18 +93,36 @@ class _Clock:
             self.add(stage, time.perf_counter() - start)
 
 
-_WORKER: dict[str, CameraOdometry] = {}
+class _SmokyCamera:
+    """Camera odometry behind the smoke emulator (if any): one verb, :meth:`track`."""
+
+    def __init__(
+        self,
+        intrinsics: CameraIntrinsics,
+        config: CameraOdometryConfig,
+        smoke: SmokeEmulator | None,
+    ) -> None:
+        self.odometry = CameraOdometry(intrinsics, config)
+        self.smoke = smoke
+
+    def track(self, frame: CameraFrame) -> tuple[CameraOdometryResult, float]:
+        """The frame's odometry result and the seconds smoke and tracking took."""
+        start = time.perf_counter()
+        if self.smoke is not None:
+            frame = self.smoke.apply(frame)
+        return self.odometry.track(frame), time.perf_counter() - start
+
+
+_WORKER: dict[str, _SmokyCamera] = {}
 """The camera odometry living in a camera worker process."""
 
 
-def _start_camera_worker(intrinsics: CameraIntrinsics, config: CameraOdometryConfig) -> None:
-    _WORKER["camera"] = CameraOdometry(intrinsics, config)
+def _start_camera_worker(*camera: Any) -> None:
+    _WORKER["camera"] = _SmokyCamera(*camera)
 
 
 def _track_in_worker(frame: CameraFrame) -> tuple[CameraOdometryResult, float]:
-    start = time.perf_counter()
-    result = _WORKER["camera"].track(frame)
-    return result, time.perf_counter() - start
+    return _WORKER["camera"].track(frame)
 
 
 class _TimeOrder:
@@ -117,14 +138,16 @@ class _TimeOrder:
     def __init__(
         self,
         slam: FusedSlam,
-        camera: tuple[CameraIntrinsics, CameraOdometryConfig] | None,
+        camera: tuple[CameraIntrinsics, CameraOdometryConfig, SmokeEmulator | None] | None,
         clock: _Clock,
         worker: bool,
         max_lag: int = 30,
     ) -> None:
         self._slam, self._clock, self._max_lag = slam, clock, max_lag
         self._executor: ProcessPoolExecutor | None = None
-        self._inline: CameraOdometry | None = None
+        self._inline: _SmokyCamera | None = None
+        smoke = camera[2] if camera is not None else None
+        self._needs_depth = smoke is not None and smoke.needs_depth
         if camera is not None and worker:
             self._executor = ProcessPoolExecutor(
                 1,
@@ -133,18 +156,18 @@ class _TimeOrder:
                 initargs=camera,
             )
         elif camera is not None:
-            self._inline = CameraOdometry(*camera)
+            self._inline = _SmokyCamera(*camera)
         # Radar: (Odometry, RadarScan); camera: a Future or (result, seconds), in log order.
         self._queue: deque[tuple[Odometry, RadarScan] | Future | tuple[Any, float]] = deque()
         self.on_radar: Callable[[Odometry], None] | None = None
 
     def camera(self, frame: CameraFrame) -> None:
-        frame = dataclasses.replace(frame, depth_m=None)  # monocular: no need to ship depth
+        if not self._needs_depth:  # monocular: depth only for haze
+            frame = dataclasses.replace(frame, depth_m=None)
         if self._executor is not None:
             self._queue.append(self._executor.submit(_track_in_worker, frame))
         else:
-            start = time.perf_counter()
-            self._queue.append((self._inline.track(frame), time.perf_counter() - start))
+            self._queue.append(self._inline.track(frame))
         self.feed(block=len(self._queue) > self._max_lag)
 
     def radar(self, odometry: list[Odometry], scans: dict[float, RadarScan]) -> None:
@@ -181,14 +204,16 @@ class _TimeOrder:
 def run_fused_slam(
     reader: LogReader, config: SmokySlamConfig, on_progress: ProgressCallback | None = None
 ) -> SlamRun:
-    """Fused SLAM over every frame of ``reader`` (smoke already applied), online.
+    """Fused SLAM over every frame of ``reader``, online (a SmokedLog's smoke is applied
+    frame by frame where the frame is used).
 
     on_progress: called after each radar frame reaches the backend, with its stamp and a
     one-line health summary. A log without a camera runs on radar (and loop closures) alone.
     """
+    reader, smoke = split_smoke(reader)
     intrinsics = reader.camera_intrinsics()
     use_camera = config.slam.camera_factors and intrinsics is not None
-    camera = (intrinsics, config.camera_odometry) if use_camera else None
+    camera = (intrinsics, config.camera_odometry, smoke) if use_camera else None
     radar = RadarOdometry(config.radar_odometry)
     slam = FusedSlam(config, reader.extrinsics())
     clock = _Clock()
@@ -210,6 +235,8 @@ def run_fused_slam(
             if isinstance(frame, ImuSample):
                 imu.append(frame)
             elif isinstance(frame, RadarScan):
+                if smoke is not None:
+                    frame = smoke.apply(frame)
                 scans[frame.stamp_s] = frame
                 with clock.time("radar"):
                     registered = radar.register(frame, imu)

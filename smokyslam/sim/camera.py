@@ -14,7 +14,10 @@ same from every viewpoint and features track between frames:
   by the face line (grid line, axis, facing side), the position along the wall and the height;
 - floor: 0.5 m tiles of random grey with dark grout; ceiling: 0.6 m tiles, some of them lamps.
 Fine detail fades to the mean grey with distance, standing in for mip-mapping, so far surfaces
-do not alias into flicker. A 3x3 Gaussian blur stands in for the lens.
+do not alias into flicker. Each pixel averages ``supersample`` x ``supersample`` samples (a box
+filter over the pixel's footprint): point samples at pixel centres snap texture edges to the
+pixel grid, which biases sub-pixel feature tracking towards zero motion. A 3x3 Gaussian blur
+then stands in for the lens.
 """
 
 from __future__ import annotations
@@ -68,10 +71,18 @@ class CameraRenderer:
         self.config = config
         self.camera_height_m = camera_height_m
         self._caster = RayCaster(world)
-        w, h = config.width, config.height
         self.intrinsics = CameraIntrinsics(
-            width=w, height=h, fx=config.fx, fy=config.fy, cx=(w - 1) / 2.0, cy=(h - 1) / 2.0
+            width=config.width,
+            height=config.height,
+            fx=config.fx,
+            fy=config.fy,
+            cx=(config.width - 1) / 2.0,
+            cy=(config.height - 1) / 2.0,
         )
+        # Internal sample grid: k x k samples per pixel, centred on the pixel's footprint.
+        self._k = k = config.supersample
+        w, h = config.width * k, config.height * k
+        fx, fy, cx, cy = config.fx * k, config.fy * k, (w - 1) / 2.0, (h - 1) / 2.0
         rng = np.random.default_rng(seed)
         self._seed_mix = int(rng.integers(0, 2**31))
         self._grey = rng.uniform(40.0, 220.0, _TABLE_SIZE).astype(np.float32)
@@ -79,11 +90,11 @@ class CameraRenderer:
         self._noise_rng = np.random.default_rng(rng.integers(0, 2**63))
 
         # Per-column ray tables in the camera body frame (x forward, y left).
-        a_u = (np.arange(w) - self.intrinsics.cx) / config.fx
+        a_u = (np.arange(w) - cx) / fx
         self._cos_u = 1.0 / np.sqrt(1.0 + a_u**2)
         self._dir_body = np.stack([self._cos_u, -a_u * self._cos_u], axis=-1)
         # Per-row plane depth: floor below the horizon, ceiling above (inf on the horizon).
-        b_v = (np.arange(h) - self.intrinsics.cy) / config.fy
+        b_v = (np.arange(h) - cy) / fy
         with np.errstate(divide="ignore"):
             z_plane = np.where(
                 b_v > 0, camera_height_m / b_v, (world.wall_height_m - camera_height_m) / -b_v
@@ -122,6 +133,7 @@ class CameraRenderer:
             rows = slice(band[0], band[-1] + 1)
             wall = self._wall_texture(hits, z_wall, rows)
             image[rows] = np.where(is_wall[rows], wall, image[rows])
+        image, depth = self._downsample(image, depth)
         image = cv2.GaussianBlur(image, (3, 3), 0.6)
         sigma = self.config.pixel_noise_sigma
         if sigma > 0:
@@ -129,6 +141,20 @@ class CameraRenderer:
             image += sigma * noise_rng.standard_normal(image.shape, dtype=np.float32)
         depth[~np.isfinite(depth)] = 0.0
         return np.clip(image + 0.5, 0, 255).astype(np.uint8), depth
+
+    def _downsample(self, image: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Samples to pixels: the mean grey of each k x k block, and the depth whose inverse is
+        the mean inverse depth (exact on a plane, where 1/z is affine in the pixel)."""
+        k = self._k
+        if k == 1:
+            return image, depth
+        h, w = self.config.height, self.config.width
+        image = image.reshape(h, k, w, k).mean(axis=(1, 3), dtype=np.float32)
+        with np.errstate(divide="ignore"):
+            inverse = np.where(depth > 0, 1.0 / depth, 0.0)
+        inverse = inverse.reshape(h, k, w, k).mean(axis=(1, 3), dtype=np.float32)
+        with np.errstate(divide="ignore"):
+            return image, np.where(inverse > 0, 1.0 / inverse, np.inf).astype(np.float32)
 
     def _wall_texture(self, hits: RayHits, z_wall: np.ndarray, rows: slice) -> np.ndarray:
         """(R, W) float32 grey of the wall seen in each column, for image rows ``rows``."""
@@ -172,7 +198,7 @@ class CameraRenderer:
 
     def _plane_texture(self, x: float, y: float, c: float, s: float) -> np.ndarray:
         """(H, W) float32 grey of the floor (below the horizon) and ceiling (above it)."""
-        image = np.full((self.config.height, self.config.width), FLOOR_GREY, dtype=np.float32)
+        image = np.full(self._z_plane.shape[:1] + self._cos_u.shape, FLOOR_GREY, np.float32)
         for rows, fwd, left, fade, tile_m, key in self._planes:
             fx = (x + c * fwd - s * left) / tile_m
             fy = (y + s * fwd + c * left) / tile_m
