@@ -282,6 +282,35 @@ def test_corners_track_between_views_to_their_true_positions(step):
     assert np.mean((status == 1) & (error_px < 1.0)) > 0.8
 
 
+def lk_error_px(supersample: int, step: tuple[float, float, float]) -> tuple[float, float]:
+    """Median LK error (px) of corners tracked between two noise-free views ``step`` apart,
+    and the depth error (m) of the second view's wall pixels against the plain renderer."""
+    config = CameraModelConfig(supersample=supersample, pixel_noise_sigma=0.0)
+    renderer = CameraRenderer(pillar_world(), config, HEIGHT_M, seed=5)
+    pose_a = np.array([2.0, 2.5, 0.3])
+    pose_b = pose_a + np.array(step)
+    image_a, depth_a = renderer.render(pose_a)
+    image_b, depth_b = renderer.render(pose_b)
+    corners = cv2.goodFeaturesToTrack(image_a, 300, 0.01, 7).reshape(-1, 2)
+    tracked, status, _ = cv2.calcOpticalFlowPyrLK(image_a, image_b, corners, None)
+    u, v = np.round(corners).astype(int).T
+    expected, _ = project(renderer, pose_b, back_project(renderer, pose_a, corners, depth_a[v, u]))
+    error_px = np.linalg.norm(tracked.reshape(-1, 2) - expected, axis=1)[status.ravel() == 1]
+    plain = CameraRenderer(pillar_world(), CameraModelConfig(pixel_noise_sigma=0.0), HEIGHT_M, 5)
+    depth_plain = plain.render(pose_b)[1]
+    return float(np.median(error_px)), float(np.median(np.abs(depth_b - depth_plain)))
+
+
+def test_supersampling_halves_the_tracking_error_and_keeps_the_geometry():
+    """Point samples snap texture edges to the pixel grid (measured: 0.20-0.27 px median LK
+    error); 2 x 2 samples per pixel bring it to 0.12-0.16 px."""
+    step = (0.07, 0.07, 0.05)
+    single, _ = lk_error_px(1, step)
+    double, depth_error_m = lk_error_px(2, step)
+    assert double < 0.7 * single
+    assert depth_error_m < 0.005
+
+
 def test_camera_below_floor_or_above_ceiling_is_refused():
     with pytest.raises(ConfigError, match="camera height"):
         CameraRenderer(box_world(), CameraModelConfig(), 3.0, seed=0)
