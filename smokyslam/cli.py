@@ -38,6 +38,14 @@ CameraNoiseOption = Annotated[
     typer.Option("--camera-noise", min=0.0, max=1.0, help="Salt-and-pepper pixel fraction."),
 ]
 HazeOption = Annotated[float | None, typer.Option("--haze", min=0.0, help="Haze density B in 1/m.")]
+CalibrationOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--calibration",
+        help="Radar calibration YAML (l_b_r_*, q_b_r_*), e.g. the TI demo bag's *.calib.yaml; "
+        "replaces the log's /tf_static mounting.",
+    ),
+]
 
 
 def _version_callback(value: bool) -> None:
@@ -68,8 +76,9 @@ def effective_config(
     radar_loss: float | None = None,
     camera_noise: float | None = None,
     haze: float | None = None,
+    calibration: Path | None = None,
 ) -> SmokySlamConfig:
-    """Defaults <- YAML file <- smoke options given on the command line."""
+    """Defaults <- YAML file <- smoke and calibration options given on the command line."""
     smoke = {
         key: value
         for key, value in (
@@ -79,7 +88,10 @@ def effective_config(
         )
         if value is not None
     }
-    return load_config(config_path, {"smoke": smoke} if smoke else None)
+    overrides: dict = {"smoke": smoke} if smoke else {}
+    if calibration is not None:
+        overrides["rig"] = {"calibration": str(calibration.resolve())}
+    return load_config(config_path, overrides or None)
 
 
 @app.command("dump-config")
@@ -225,10 +237,11 @@ def run(
     rerun: Annotated[
         Path | None, typer.Option("--rerun", help="Also write a Rerun recording (.rrd) here.")
     ] = None,
+    calibration: CalibrationOption = None,
     config: ConfigOption = None,
 ) -> None:
     """Run SLAM/odometry on a log: trajectory (TUM, KITTI), maps, metrics and config."""
-    cfg = effective_config(config, radar_loss, camera_noise, haze)
+    cfg = effective_config(config, radar_loss, camera_noise, haze, calibration)
     from smokyslam.frontends.readers.registry import open_log
     from smokyslam.pipelines.run import run_log
     from smokyslam.progress import progress_bar

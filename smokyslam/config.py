@@ -53,6 +53,11 @@ class RigConfig(_Section):
     camera_xy_m: tuple[float, float] = (0.05, 0.0)
     camera_yaw_rad: float = 0.0
     camera_height_m: float = 1.2
+    calibration: str | None = Field(
+        None,
+        description="radar calibration YAML (l_b_r_*, q_b_r_*: radar on the IMU body); "
+        "replaces the log's /tf_static mounting",
+    )
 
 
 class RadarModelConfig(_Section):

@@ -2,11 +2,24 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import yaml
 
 from smokyslam.config import RigConfig
-from smokyslam.geometry import R_BODY_OPTICAL, se2_compose, se3_from_se2
+from smokyslam.errors import ConfigError
+from smokyslam.geometry import (
+    R_BODY_OPTICAL,
+    quat_wxyz_from_xyzw,
+    se2_compose,
+    se3_from_se2,
+    se3_matrix,
+)
 from smokyslam.types import Extrinsics
+
+CALIBRATION_KEYS = ("l_b_r_x", "l_b_r_y", "l_b_r_z", "q_b_r_x", "q_b_r_y", "q_b_r_z", "q_b_r_w")
+"""Radar-to-body keys of a radar calibration YAML (as shipped with the TI demo bag)."""
 
 
 def radar_mount(rig: RigConfig) -> np.ndarray:
@@ -25,6 +38,33 @@ def rig_extrinsics(rig: RigConfig) -> Extrinsics:
     T_base_camera = se3_from_se2(camera_mount(rig), rig.camera_height_m)
     T_base_camera[:3, :3] = T_base_camera[:3, :3] @ R_BODY_OPTICAL
     return Extrinsics(T_base_radar=T_base_radar, T_base_camera=T_base_camera)
+
+
+def extrinsics_from_calibration(path: Path | str) -> Extrinsics:
+    """``T_base_radar`` from a radar calibration YAML, base_link being its body (IMU) frame.
+
+    ``l_b_r_{x,y,z}``: the radar origin in the body frame, metres; ``q_b_r_{x,y,z,w}``: the
+    rotation from the radar frame to the body frame (so ``p_body = R p_radar + l``). The
+    camera stays at base_link. Raises ConfigError naming the file and what is wrong.
+    """
+    path = Path(path)
+    try:
+        values = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"radar calibration {path}: cannot read it ({exc})") from None
+    if not isinstance(values, dict):
+        raise ConfigError(f"radar calibration {path}: not a YAML mapping")
+    if missing := [key for key in CALIBRATION_KEYS if key not in values]:
+        raise ConfigError(f"radar calibration {path}: missing {', '.join(missing)}")
+    try:
+        numbers = np.array([float(values[key]) for key in CALIBRATION_KEYS])
+    except (TypeError, ValueError):
+        raise ConfigError(f"radar calibration {path}: {CALIBRATION_KEYS} must be numbers") from None
+    norm = float(np.linalg.norm(numbers[3:]))
+    if not np.isfinite(numbers).all() or abs(norm - 1.0) > 0.01:
+        raise ConfigError(f"radar calibration {path}: q_b_r is not a unit quaternion ({norm:.3f})")
+    T_base_radar = se3_matrix(numbers[:3], quat_wxyz_from_xyzw(numbers[3:] / norm))
+    return Extrinsics(T_base_radar=T_base_radar)
 
 
 def sensor_poses(poses_world_base: np.ndarray, mount: np.ndarray) -> np.ndarray:

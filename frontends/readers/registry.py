@@ -19,6 +19,7 @@ from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import LogError, TopicError
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.rosbag import RosbagReader
+from smokyslam.rig import extrinsics_from_calibration
 
 ReaderFactory = Callable[[Path, SmokySlamConfig, Sequence[str]], LogReader]
 
@@ -32,7 +33,9 @@ _CARMEN_STREAMS = frozenset({"radar", "imu", "ground_truth_pose"})
 
 
 def _open_rosbag(path: Path, config: SmokySlamConfig, require: Sequence[str]) -> LogReader:
-    reader = RosbagReader(path, config.topics)
+    calibration = config.rig.calibration
+    extrinsics = extrinsics_from_calibration(calibration) if calibration else None
+    reader = RosbagReader(path, config.topics, extrinsics)
     reader.require(*require)
     return reader
 

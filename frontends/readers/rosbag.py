@@ -66,9 +66,14 @@ def _format_of(path: Path) -> str:
 class RosbagReader:
     """A ROS1/ROS2 log opened for replay (see the module docstring for time and pairing)."""
 
-    def __init__(self, path: Path | str, topics: TopicsConfig) -> None:
+    def __init__(
+        self, path: Path | str, topics: TopicsConfig, extrinsics: Extrinsics | None = None
+    ) -> None:
+        """``extrinsics``: the sensor mounting to report instead of the log's /tf_static
+        (e.g. from a radar calibration YAML)."""
         self.path = Path(path)
         self.topics = topics
+        self._extrinsics = extrinsics
         self.format = _format_of(self.path)
         with self._open() as reader:
             self._log_types = {name: info.msgtype or "?" for name, info in reader.topics.items()}
@@ -171,7 +176,10 @@ class RosbagReader:
         return self._intrinsics
 
     def extrinsics(self) -> Extrinsics:
-        """Sensor mounting rebuilt from /tf_static; identity for frames it does not hold."""
+        """Sensor mounting rebuilt from /tf_static; identity for frames it does not hold. The
+        mounting given at construction, if any, replaces it."""
+        if self._extrinsics is not None:
+            return self._extrinsics
         transforms = [t for _, _, msg in self._messages("tf_static") for t in msg.transforms]
         if not transforms:
             logger.info("%s: no static transforms; sensors taken at base_link", self.path)

@@ -27,6 +27,7 @@ from smokyslam.evaluation.trajectory_metrics import (
 from smokyslam.frontends.radar.odometry import DeadReckoning, RadarOdometry, poses_world_base
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.geometry import interpolate_se2, se2_compose, se2_inverse
+from smokyslam.mapping.build import level_scan
 from smokyslam.outputs import OutputFolder
 from smokyslam.types import GroundTruthMap, GroundTruthPose, ImuSample, Odometry, RadarScan
 
@@ -72,12 +73,17 @@ def run_radar_odometry(
     on_progress: ProgressCallback | None = None,
 ) -> OdometryRun:
     """Run radar odometry (``radar``: prior + scan matching) or the Doppler/gyro baseline
-    (``dead-reckoning``) over every radar frame of ``reader``."""
+    (``dead-reckoning``) over every radar frame of ``reader``.
+
+    Scans are levelled first (rotated through ``T_base_radar`` into the radar's position and
+    heading with z up), so a tilted or upside-down radar turns the same way as the gyro.
+    """
     estimator = (
         DeadReckoning(config.radar_odometry)
         if source == "dead-reckoning"
         else RadarOdometry(config.radar_odometry)
     )
+    T_base_radar = reader.extrinsics().T_base_radar
     imu: list[ImuSample] = []
     outputs: list[Odometry] = []
     scans: dict[float, RadarScan] = {}
@@ -89,7 +95,7 @@ def run_radar_odometry(
         elif isinstance(frame, RadarScan):
             scans[frame.stamp_s] = frame
             start = time.perf_counter()
-            finished = estimator.register(frame, imu)
+            finished = estimator.register(level_scan(frame, T_base_radar)[0], imu)
             busy_s += time.perf_counter() - start
             outputs.extend(finished)
             imu = []
@@ -107,7 +113,7 @@ def run_radar_odometry(
     run = OdometryRun(
         source=source,
         stamps_s=np.array([o.stamp_s for o in outputs]),
-        poses_world_base=poses_world_base(poses_sensor, reader.extrinsics().T_base_radar),
+        poses_world_base=poses_world_base(poses_sensor, T_base_radar),
         lost=np.array([o.health.lost for o in outputs], dtype=bool),
         gt_stamps_s=np.asarray(gt_stamps, dtype=float)[order],
         gt_poses_world_base=np.asarray(gt_poses, dtype=float).reshape(-1, 3)[order],

@@ -38,6 +38,7 @@ from smokyslam.config import CameraOdometryConfig, SmokySlamConfig
 from smokyslam.frontends.camera.odometry import CameraOdometry, CameraOdometryResult
 from smokyslam.frontends.radar.odometry import RadarOdometry
 from smokyslam.frontends.readers.base import LogReader
+from smokyslam.mapping.build import level_scan
 from smokyslam.pipelines.fusion import FusedSlam
 from smokyslam.pipelines.odometry import OdometryRun, ProgressCallback
 from smokyslam.pipelines.visual_map import VisualKeyframes, visual_map_on_poses
@@ -215,6 +216,7 @@ def run_fused_slam(
     use_camera = config.slam.camera_factors and intrinsics is not None
     camera = (intrinsics, config.camera_odometry, smoke) if use_camera else None
     radar = RadarOdometry(config.radar_odometry)
+    T_base_radar = reader.extrinsics().T_base_radar
     slam = FusedSlam(config, reader.extrinsics())
     clock = _Clock()
     backend = _TimeOrder(slam, camera, clock, config.slam.camera_process)
@@ -239,7 +241,7 @@ def run_fused_slam(
                     frame = smoke.apply(frame)
                 scans[frame.stamp_s] = frame
                 with clock.time("radar"):
-                    registered = radar.register(frame, imu)
+                    registered = radar.register(level_scan(frame, T_base_radar)[0], imu)
                 imu = []
                 backend.radar(registered, scans)
             elif isinstance(frame, CameraFrame) and camera is not None:
