@@ -146,6 +146,20 @@ class CarmenConfig(_Section):
     gyro_noise_deg: float = Field(1.0, ge=0.0, description="yaw noise sigma per scan, degrees")
     gyro_bias_deg: float = Field(0.05, description="yaw bias per scan, degrees")
     seed: int = 0
+    map_radius_m: float = Field(
+        30.0,
+        gt=0.0,
+        description="radar odometry local-map radius on these logs (replaces "
+        "radar_odometry.map_radius_m): few scans see each place, so the map is kept for "
+        "revisits to re-anchor to",
+    )
+    gyro_bias_sigma_degps: float = Field(
+        0.0,
+        ge=0.0,
+        description="radar odometry gyro-bias estimate on these logs (replaces "
+        "radar_odometry.gyro_bias_sigma_degps; 0: off): too few scans to tell the bias from "
+        "map error, and scan matching absorbs it",
+    )
 
 
 class RadarOdometryConfig(_Section):

@@ -9,7 +9,7 @@ import pytest
 
 from smokyslam.config import SmokySlamConfig, TopicsConfig
 from smokyslam.errors import LogError, TopicError
-from smokyslam.frontends.readers.registry import READERS, log_format, open_log
+from smokyslam.frontends.readers.registry import READERS, config_for_log, log_format, open_log
 from smokyslam.frontends.readers.rosbag import RosbagReader
 from smokyslam.sim.recorder import LogWriter
 from smokyslam.types import ImuSample, RadarScan
@@ -129,3 +129,17 @@ def test_carmen_logs_go_to_the_carmen_reader(
     monkeypatch.setitem(sys.modules, "smokyslam.frontends.readers.carmen", None)
     with pytest.raises(LogError, match="CARMEN support not available"):
         open_log(path, CONFIG)
+
+
+def test_carmen_logs_run_with_their_own_local_map_radius(tmp_path: Path, small_log: Path) -> None:
+    path = tmp_path / "lab.log"
+    path.write_text("# empty\n")
+    config = config_for_log(path, CONFIG)
+    assert config.radar_odometry.map_radius_m == CONFIG.carmen.map_radius_m == 30.0
+    assert config.radar_odometry.gyro_bias_sigma_degps == CONFIG.carmen.gyro_bias_sigma_degps
+    carmen_keys = {"map_radius_m", "gyro_bias_sigma_degps"}
+    assert config.radar_odometry.model_dump(exclude=carmen_keys) == (
+        CONFIG.radar_odometry.model_dump(exclude=carmen_keys)
+    )
+    assert config_for_log(small_log, CONFIG) is CONFIG
+    assert CONFIG.radar_odometry.map_radius_m == 12.0

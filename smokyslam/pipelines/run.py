@@ -17,7 +17,7 @@ from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import ConfigError
 from smokyslam.evaluation.trajectory_metrics import Alignment
 from smokyslam.frontends.readers.base import LogReader
-from smokyslam.frontends.readers.registry import open_log
+from smokyslam.frontends.readers.registry import config_for_log, open_log
 from smokyslam.mapping.build import radar_map_on_poses
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.camera_only import CameraRun, camera_visual_map, run_camera_odometry
@@ -86,6 +86,7 @@ def run_log(
     if source not in SOURCES:
         raise ConfigError(f"unknown odometry source '{source}': choose from {', '.join(SOURCES)}")
     estimator, required, alignment = SOURCES[source]
+    config = config_for_log(log_path, config)
     started = time.perf_counter()
     with OutputFolder(out_dir) as out:
         out.write_config(config)
