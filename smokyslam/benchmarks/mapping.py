@@ -20,6 +20,7 @@ from smokyslam.evaluation.map_metrics import evaluate_map
 from smokyslam.geometry import transform_points_2d
 from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.raycast import naive_raycast, raycast
+from smokyslam.sim.raycast2d import cast_rays
 from smokyslam.sim.world import World, box_world
 from smokyslam.types import Extrinsics, Frame, GroundTruthPose, RadarScan
 
@@ -27,23 +28,16 @@ from smokyslam.types import Extrinsics, Frame, GroundTruthPose, RadarScan
 def first_hit_ranges(
     world: World, pose_world_sensor: np.ndarray, azimuths_rad: np.ndarray, max_range_m: float
 ) -> np.ndarray:
-    """(B,) range of the first occupied cell along each beam (inf if none within range).
+    """(B,) range to the first occupied cell along each beam (inf if none within range), from
+    the sensor at ``pose_world_sensor`` [x, y, yaw]; ``azimuths_rad`` (B,) in the sensor frame.
 
-    Beams are sampled every quarter cell from the sensor at ``pose_world_sensor`` [x, y, yaw];
-    ``azimuths_rad`` (B,) are in the sensor frame. Accurate to a quarter cell.
+    The simulator's exact grid ray caster finds where each beam enters the wall cell; the range
+    goes a quarter cell further, so the return lies inside that cell rather than on its edge.
     """
-    step_m = world.spec.resolution_m / 4.0
-    ranges = np.arange(step_m, max_range_m + step_m, step_m)
     angles = pose_world_sensor[2] + np.asarray(azimuths_rad, dtype=float)
     directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    samples = pose_world_sensor[:2] + ranges[None, :, None] * directions[:, None, :]
-    cells = world.spec.cells_of(samples.reshape(-1, 2))
-    inside = world.spec.inside(cells)
-    solid = np.ones(len(cells), dtype=bool)  # leaving the grid counts as hitting a wall
-    solid[inside] = world.occupied[cells[inside, 1], cells[inside, 0]]
-    solid = solid.reshape(len(angles), len(ranges))
-    first = np.argmax(solid, axis=1)
-    return np.where(solid.any(axis=1), ranges[first], np.inf)
+    hits = cast_rays(world, pose_world_sensor[:2], directions, max_range_m)
+    return hits.distance_m + world.spec.resolution_m / 4.0
 
 
 def loop_pose(world: World, stamp_s: float, period_s: float = 30.0) -> np.ndarray:
