@@ -162,10 +162,11 @@ def compare_command(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
     ] = None,
+    calibration: CalibrationOption = None,
     config: ConfigOption = None,
 ) -> None:
     """Run odometry sources at several smoke levels: run folders, a table and plots."""
-    cfg = effective_config(config)
+    cfg = effective_config(config, calibration=calibration)
     from smokyslam.pipelines.compare import compare, parse_smoke_levels, parse_sources
     from smokyslam.progress import progress_bar
 
