@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-import cv2
 import numpy as np
 
 from smokyslam.geometry import se3_inverse
@@ -89,6 +88,18 @@ def project(
     return uv, z
 
 
+def _project_each(
+    T_world_camera: np.ndarray, points_world: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`project` with one (N, 4, 4) pose per (N, 3) point."""
+    R = T_world_camera[:, :3, :3]
+    p = np.einsum("nji,nj->ni", R, points_world - T_world_camera[:, :3, 3])  # R^T (X - t)
+    z = p[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = (p[:, :2] / z[:, None]) * [K[0, 0], K[1, 1]] + [K[0, 2], K[1, 2]]
+    return uv, z
+
+
 def triangulate(
     T_world_a: np.ndarray,
     T_world_b: np.ndarray,
@@ -97,39 +108,53 @@ def triangulate(
     K: np.ndarray,
     max_error_px: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Triangulate (N, 2) pixel pairs seen from two camera poses (optical axes, 4x4 each).
+    """Triangulate (N, 2) pixel pairs seen from two camera poses (optical axes).
 
-    Returns (N, 3) world points, their (N,) ray angles in degrees (NaN behind a camera), and
-    an (N,) bool mask of the points in front of both cameras, seen under a ray angle of at
-    least ``RAY_ANGLE_FLOOR_DEG`` and reprojecting within ``max_error_px`` in both images.
-    Whether the pair of views has parallax enough is the caller's decision, made once for
-    the pair: a per-point angle threshold would keep the points noise made look closer.
+    T_world_a: (4, 4), or (N, 4, 4) one first view per pair; T_world_b: (4, 4).
+    Linear (DLT) triangulation, all pairs at once. Returns (N, 3) world points, their (N,)
+    ray angles in degrees (NaN behind a camera), and an (N,) bool mask of the points in front
+    of both cameras, seen under a ray angle of at least ``RAY_ANGLE_FLOOR_DEG`` and
+    reprojecting within ``max_error_px`` in both images. Whether a pair of views has parallax
+    enough is the caller's decision, made once per pair: a per-point angle threshold would
+    keep the points noise made look closer.
     """
-    if len(uv_a_px) == 0:
+    n = len(uv_a_px)
+    if n == 0:
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=bool)
-    P_a = K @ se3_inverse(T_world_a)[:3]
+    T_a = np.broadcast_to(np.asarray(T_world_a, dtype=float), (n, 4, 4))
+    T_cw_a = np.linalg.inv(T_a)
+    P_a = np.einsum("ij,njk->nik", K, T_cw_a[:, :3])
     P_b = K @ se3_inverse(T_world_b)[:3]
-    X = cv2.triangulatePoints(P_a, P_b, uv_a_px.T.astype(np.float64), uv_b_px.T.astype(np.float64))
+    uv_a, uv_b = np.asarray(uv_a_px, dtype=float), np.asarray(uv_b_px, dtype=float)
+    A = np.stack(
+        [
+            uv_a[:, 0:1] * P_a[:, 2] - P_a[:, 0],
+            uv_a[:, 1:2] * P_a[:, 2] - P_a[:, 1],
+            uv_b[:, 0:1] * P_b[2] - P_b[0],
+            uv_b[:, 1:2] * P_b[2] - P_b[1],
+        ],
+        axis=1,
+    )
+    X = np.linalg.svd(A)[2][:, -1]  # (N, 4) null vectors
     with np.errstate(divide="ignore", invalid="ignore"):
-        points = (X[:3] / X[3]).T
-    uv_a, z_a = project(T_world_a, points, K)
-    uv_b, z_b = project(T_world_b, points, K)
+        points = X[:, :3] / X[:, 3:4]
+    uv_a_hat, z_a = _project_each(T_a, points, K)
+    uv_b_hat, z_b = project(T_world_b, points, K)
     error = np.maximum(
-        np.linalg.norm(uv_a - uv_a_px, axis=1), np.linalg.norm(uv_b - uv_b_px, axis=1)
+        np.linalg.norm(uv_a_hat - uv_a, axis=1), np.linalg.norm(uv_b_hat - uv_b, axis=1)
     )
     in_front = (z_a > 0) & (z_b > 0) & np.isfinite(points).all(axis=1)
-    angle = np.full(len(points), np.nan)
+    angle = np.full(n, np.nan)
     angle[in_front] = angle_between_deg(
-        points[in_front] - T_world_a[:3, 3], points[in_front] - T_world_b[:3, 3]
+        points[in_front] - T_a[in_front, :3, 3], points[in_front] - T_world_b[:3, 3]
     )
     # Points seen near the epipole (the direction of travel) have no depth to speak of. Judge
     # that from the bearing alone: a test on the triangulated angle would keep the points
     # noise made look closer, and shrink the scale a little at every keyframe.
-    baseline = T_world_b[:3, 3] - T_world_a[:3, 3]
-    rays = np.column_stack([uv_b_px, np.ones(len(uv_b_px))]) @ np.linalg.inv(K).T
-    rays = rays @ T_world_b[:3, :3].T
+    baseline = T_world_b[:3, 3] - T_a[:, :3, 3]
+    rays = np.column_stack([uv_b, np.ones(n)]) @ np.linalg.inv(K).T @ T_world_b[:3, :3].T
     sine = np.linalg.norm(np.cross(rays, baseline), axis=1) / (
-        np.linalg.norm(rays, axis=1) * max(np.linalg.norm(baseline), 1e-12)
+        np.linalg.norm(rays, axis=1) * np.maximum(np.linalg.norm(baseline, axis=1), 1e-12)
     )
     off_epipole = sine >= np.sin(np.radians(EPIPOLE_CLEARANCE_DEG))
     ok = in_front & off_epipole & (angle >= RAY_ANGLE_FLOOR_DEG) & (error <= max_error_px)

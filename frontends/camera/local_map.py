@@ -121,7 +121,7 @@ class LocalMap:
         )
 
     def _triangulate(self) -> None:
-        """Triangulate tracks against their birth keyframe, one birth keyframe at a time.
+        """Triangulate tracks against their birth keyframes, all qualifying tracks at once.
 
         A birth keyframe qualifies once its baseline to this one reaches
         tan(``min_triangulation_deg``) x the median landmark depth; landmarks are
@@ -133,23 +133,26 @@ class LocalMap:
         _, depth = project(T_now, tracks.landmark_world[has], self.K)
         scene_depth = float(np.median(depth)) if has.any() else np.inf
         min_baseline = scene_depth * np.tan(np.radians(self.config.min_triangulation_deg))
-        for birth in np.unique(tracks.birth_keyframe):
-            T_birth = self.keyframes[int(birth)]
-            baseline = float(np.linalg.norm(T_birth[:3, 3] - T_now[:3, 3]))
-            if birth == self.keyframe_id or baseline < min_baseline:
-                continue
-            rows = np.flatnonzero(tracks.birth_keyframe == birth)
-            points, _, ok = triangulate(
-                T_birth,
-                T_now,
-                tracks.birth_uv_px[rows],
-                tracks.uv_px[rows],
-                self.K,
-                self.config.pnp_threshold_px,
-            )
-            better = ok & ~(tracks.baseline[rows] >= baseline)  # NaN: no landmark yet
-            tracks.landmark_world[rows[better]] = points[better]
-            tracks.baseline[rows[better]] = baseline
+        births = np.unique(tracks.birth_keyframe)
+        T_births = np.array([self.keyframes[int(b)] for b in births])  # one per keyframe
+        baselines = np.linalg.norm(T_births[:, :3, 3] - T_now[:3, 3], axis=1)
+        qualifies = (births != self.keyframe_id) & (baselines >= min_baseline)
+        group = np.searchsorted(births, tracks.birth_keyframe)
+        rows = np.flatnonzero(qualifies[group])
+        if len(rows) == 0:
+            return
+        points, _, ok = triangulate(
+            T_births[group[rows]],
+            T_now,
+            tracks.birth_uv_px[rows],
+            tracks.uv_px[rows],
+            self.K,
+            self.config.pnp_threshold_px,
+        )
+        baseline = baselines[group[rows]]
+        better = ok & ~(tracks.baseline[rows] >= baseline)  # NaN: no landmark yet
+        tracks.landmark_world[rows[better]] = points[better]
+        tracks.baseline[rows[better]] = baseline[better]
 
     def _adjust_window(self) -> None:
         """Bundle-adjust the newest keyframes and the live landmarks, older ones held fixed.
