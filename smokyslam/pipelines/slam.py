@@ -216,8 +216,9 @@ def run_fused_slam(
     use_camera = config.slam.camera_factors and intrinsics is not None
     camera = (intrinsics, config.camera_odometry, smoke) if use_camera else None
     radar = RadarOdometry(config.radar_odometry)
-    T_base_radar = reader.extrinsics().T_base_radar
-    slam = FusedSlam(config, reader.extrinsics())
+    extrinsics = reader.extrinsics()
+    T_base_radar = extrinsics.T_base_radar
+    slam = FusedSlam(config, extrinsics)
     clock = _Clock()
     backend = _TimeOrder(slam, camera, clock, config.slam.camera_process)
     imu: list[ImuSample] = []
