@@ -32,7 +32,7 @@ $(STAMP): pyproject.toml setup.py | system-deps
 	touch $(STAMP)
 
 demo: install
-	$(VENV)/bin/smokyslam demo --out $(DEMO_DIR)
+	$(VENV)/bin/smokyslam demo --out $(DEMO_DIR) --overwrite
 
 test: install
 	$(VENV)/bin/ruff check .

@@ -60,13 +60,13 @@ class CameraGate:
 
     def __init__(
         self,
-        noise_fraction: HealthRamp = HealthRamp(good=0.05, bad=0.30),
-        contrast: HealthRamp = HealthRamp(good=0.12, bad=0.03),
-        tracked: HealthRamp = HealthRamp(good=80.0, bad=15.0),
-        inlier_ratio: HealthRamp = HealthRamp(good=0.6, bad=0.25),
-        drop_below: float = 0.15,
-        reenter_above: float = 0.5,
-        reenter_frames: int = 3,
+        noise_fraction: HealthRamp,
+        contrast: HealthRamp,
+        tracked: HealthRamp,
+        inlier_ratio: HealthRamp,
+        drop_below: float,
+        reenter_above: float,
+        reenter_frames: int,
     ) -> None:
         """Ramps per health signal; the weight is the smallest of the four. The camera is
         dropped when the weight falls below ``drop_below`` and re-enters after

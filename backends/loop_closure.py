@@ -122,16 +122,16 @@ class LoopCloser:
 
     def __init__(
         self,
-        search_radius_m: float = 3.0,
-        min_index_gap: int = 30,
-        max_candidates: int = 3,
-        min_points: int = 20,
-        inlier_distance_m: float = 0.3,
-        min_inlier_fraction: float = 0.6,
-        max_rms_m: float = 0.12,
-        max_correction: tuple[float, float] = (1.5, 0.4),
-        min_spacing: int = 5,
-        floor_sigmas: tuple[float, float, float] = (0.05, 0.05, 0.01),
+        search_radius_m: float,
+        min_index_gap: int,
+        max_candidates: int,
+        min_points: int,
+        inlier_distance_m: float,
+        min_inlier_fraction: float,
+        max_rms_m: float,
+        max_correction: tuple[float, float],
+        min_spacing: int,
+        floor_sigmas: tuple[float, float, float],
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.

@@ -38,9 +38,9 @@ class PoseGraph:
     Keyframes are numbered 0, 1, 2, ... in time order. Add factors with ``add_prior`` /
     ``add_between`` (a between factor to a new index also creates that pose, initialised by
     composing the delta onto the current estimate of the other end), then call ``optimize``
-    once per keyframe. Doppler + gyro odometry enters as a between factor from
-    ``velocity.integrate_velocity`` (source "doppler"), camera factors after
-    ``scale.metric_relative_pose`` and ``camera_gate.inflate_covariance`` (source "camera").
+    once per keyframe. Odometry keyframe steps enter as between factors (source "radar" or
+    "camera"), camera factors after ``scale.metric_relative_pose`` and
+    ``camera_gate.inflate_covariance`` (source "camera"), loop closures with a robust kernel.
 
     Only the factors and values added since the last ``optimize`` reach iSAM2; giving it the
     whole graph again would count every factor twice and make the marginals overconfident.
@@ -48,10 +48,10 @@ class PoseGraph:
 
     def __init__(
         self,
-        floor_sigmas: tuple[float, float, float] = (0.005, 0.005, 0.001),
-        relinearize_threshold: float = 0.01,
-        relinearize_skip: int = 1,
-        loop_closure_iterations: int = 3,
+        floor_sigmas: tuple[float, float, float],
+        relinearize_threshold: float,
+        relinearize_skip: int,
+        loop_closure_iterations: int,
     ) -> None:
         """``floor_sigmas``: smallest ``[x_m, y_m, theta_rad]`` sigmas any factor may claim.
         ``loop_closure_iterations``: extra iSAM2 updates after a factor joins two old poses."""

@@ -33,10 +33,10 @@ class ScaleEstimator:
 
     def __init__(
         self,
-        window: int = 20,
-        min_pairs: int = 5,
-        min_translation_m: float = 0.05,
-        inlier_ratio_tolerance: float = 0.25,
+        window: int,
+        min_pairs: int,
+        min_translation_m: float,
+        inlier_ratio_tolerance: float,
     ) -> None:
         """window: keyframe pairs kept. min_pairs: inliers needed before a scale is reported.
         min_translation_m: shorter metric motions carry no scale and are skipped.

@@ -43,3 +43,7 @@ class TrajectoryFileError(SmokySlamError):
 
 class EstimationError(SmokySlamError):
     """An estimator failed in a way the caller should report (e.g. a degenerate graph)."""
+
+
+class OutputError(SmokySlamError):
+    """An output folder cannot be used (it holds an earlier run, or cannot be written)."""

@@ -107,6 +107,35 @@ def se2_log(pose: np.ndarray) -> np.ndarray:
     return np.stack([dx, dy, theta], axis=-1)
 
 
+def se2_adjoint(pose: np.ndarray) -> np.ndarray:
+    """(3, 3) adjoint of a planar pose in tangent order ``[x, y, theta]``:
+    ``pose * Exp(xi) = Exp(Ad @ xi) * pose``."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    return np.array([[c, -s, pose[1]], [s, c, -pose[0]], [0.0, 0.0, 1.0]])
+
+
+def se2_compose_with_covariance(
+    delta_a: np.ndarray, cov_a: np.ndarray, delta_b: np.ndarray, cov_b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``delta_a * delta_b`` and its (3, 3) tangent (right-perturbation) covariance, for
+    independent steps: ``a Exp(xi_a) b Exp(xi_b) = (a b) Exp(Ad(b^-1) xi_a + xi_b)``."""
+    adjoint = se2_adjoint(se2_inverse(delta_b))
+    return se2_compose(delta_a, delta_b), adjoint @ cov_a @ adjoint.T + cov_b
+
+
+def se2_conjugate(
+    delta: np.ndarray, covariance: np.ndarray, pose_base_sensor: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A sensor-frame relative pose and its tangent covariance expressed in base_link.
+
+    ``D_base = M * D_sensor * M^-1`` with the mount ``M = pose_base_sensor``; a right
+    perturbation ``xi`` of ``D_sensor`` becomes ``Ad(M) xi`` of ``D_base``.
+    """
+    adjoint = se2_adjoint(pose_base_sensor)
+    moved = se2_compose(se2_compose(pose_base_sensor, delta), se2_inverse(pose_base_sensor))
+    return moved, adjoint @ covariance @ adjoint.T
+
+
 def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
     """Map (N, 2) points through the planar pose ``[x, y, yaw]`` (child frame -> parent frame)."""
     points_xy = np.asarray(points_xy, dtype=float).reshape(-1, 2)

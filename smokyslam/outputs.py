@@ -1,18 +1,23 @@
 """An output folder: results, the effective config, metrics and a run log, written as they come.
 
 Each stage writes what it has as soon as it has it, so a run cut short keeps what it computed.
+A folder that already holds a run's outputs is refused (one clear line) unless the caller
+asks to overwrite it, which first removes those outputs, so no file of the earlier run (a map,
+a metrics key) survives into the new one.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import shutil
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from smokyslam.config import SmokySlamConfig, deep_update, write_config
+from smokyslam.errors import OutputError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import save_map
 from smokyslam.mapping.render import render_map_png
@@ -21,6 +26,18 @@ from smokyslam.types import GroundTruthMap
 METRICS_FILE = "metrics.json"
 CONFIG_FILE = "config.yaml"
 RUN_LOG_FILE = "run.log"
+RUN_OUTPUTS = (
+    METRICS_FILE,
+    CONFIG_FILE,
+    RUN_LOG_FILE,
+    "trajectory.tum",
+    "trajectory_kitti.txt",
+    "ground_truth.tum",
+    "trajectory.png",
+    "error.log",
+    "maps",
+)
+"""What a run leaves in its folder; any of them there means the folder holds a run."""
 
 
 def _jsonable(value: Any) -> Any:
@@ -35,11 +52,42 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+def claim_folder(
+    root: Path,
+    overwrite: bool,
+    outputs: tuple[str, ...] = RUN_OUTPUTS,
+    markers: tuple[str, ...] | None = None,
+) -> None:
+    """Make ``root`` ready for new outputs. If it holds any of ``markers`` (default: any of
+    ``outputs``), an earlier run is there: refuse it (OutputError) unless ``overwrite``, which
+    removes every one of ``outputs`` first. Nothing else in the folder is touched."""
+    if root.exists() and not root.is_dir():
+        raise OutputError(f"--out {root}: exists and is not a folder")
+    found = [name for name in (markers or outputs) if (root / name).exists()]
+    if not found:
+        return
+    present = [root / name for name in outputs if (root / name).exists()]
+    if not overwrite:
+        raise OutputError(
+            f"--out {root} holds an earlier run ({found[0]}); "
+            "pass --overwrite to replace it, or choose another folder"
+        )
+    for path in present:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+
+
 class OutputFolder:
     """A results folder: ``config.yaml``, ``metrics.json``, ``run.log``, ``maps/``, plots."""
 
-    def __init__(self, root: Path | str) -> None:
+    def __init__(self, root: Path | str, overwrite: bool | None = None) -> None:
+        """``overwrite``: None opens the folder as it is (to add to it); False refuses a
+        folder holding an earlier run's outputs; True removes those outputs first."""
         self.root = Path(root)
+        if overwrite is not None:
+            claim_folder(self.root, overwrite)
         self.root.mkdir(parents=True, exist_ok=True)
         self.maps: dict[str, tuple[np.ndarray, GridSpec]] = {}
         """Every map written so far: name -> (trinary cells, grid spec)."""

@@ -13,10 +13,13 @@ from smokyslam.geometry import (
     R_BODY_OPTICAL,
     quat_wxyz_from_xyzw,
     se2_compose,
+    se2_from_matrix,
+    se2_inverse,
     se3_from_se2,
     se3_matrix,
+    transform_points_2d,
 )
-from smokyslam.types import Extrinsics
+from smokyslam.types import Extrinsics, RadarScan
 
 CALIBRATION_KEYS = ("l_b_r_x", "l_b_r_y", "l_b_r_z", "q_b_r_x", "q_b_r_y", "q_b_r_z", "q_b_r_w")
 """Radar-to-body keys of a radar calibration YAML (as shipped with the TI demo bag)."""
@@ -65,6 +68,22 @@ def extrinsics_from_calibration(path: Path | str) -> Extrinsics:
         raise ConfigError(f"radar calibration {path}: q_b_r is not a unit quaternion ({norm:.3f})")
     T_base_radar = se3_matrix(numbers[:3], quat_wxyz_from_xyzw(numbers[3:] / norm))
     return Extrinsics(T_base_radar=T_base_radar)
+
+
+def level_scan(scan: RadarScan, T_base_radar: np.ndarray) -> tuple[RadarScan, np.ndarray]:
+    """Express a scan in the radar's levelled frame (radar position and heading, z up from
+    the radar's height).
+
+    Returns the levelled scan and ``pose_base_radar`` [x_m, y_m, yaw_rad]. A tilted or rolled
+    radar's points are rotated fully into base_link first, so only the planar part is lost.
+    """
+    T = np.asarray(T_base_radar, dtype=float)
+    pose_base_radar = se2_from_matrix(T)
+    points_base = scan.points_xyz_m @ T[:3, :3].T + T[:3, 3]
+    levelled = points_base - [0.0, 0.0, T[2, 3]]
+    levelled[:, :2] = transform_points_2d(se2_inverse(pose_base_radar), points_base[:, :2])
+    out = RadarScan(scan.stamp_s, levelled, scan.intensity, scan.doppler_mps, scan.frame_id)
+    return out, pose_base_radar
 
 
 def sensor_poses(poses_world_base: np.ndarray, mount: np.ndarray) -> np.ndarray:

@@ -1,5 +1,9 @@
 """Smoke emulated at replay time, so one clean log serves every smoke level.
 
+One notation names a level everywhere (``--smoke R:C[:H]``: radar loss, camera noise, haze),
+parsed by :func:`parse_smoke` into a :class:`SmokeLevel`; the run loop applies it once per
+frame through one :class:`SmokeEmulator`.
+
 - Radar: exactly ``round(radar_loss * N)`` of a scan's N returns are dropped, chosen at random.
 - Camera: haze first, ``I' = I exp(-B d) + A (1 - exp(-B d))`` with density ``B = haze``
   (1/m), airlight ``A`` (grey level) and per-pixel depth ``d`` (``frame.depth_m``, or
@@ -17,22 +21,106 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterator
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from smokyslam.config import SmokeConfig
-from smokyslam.frontends.readers.base import LogReader, LogSummary
-from smokyslam.types import (
-    CameraFrame,
-    CameraIntrinsics,
-    Extrinsics,
-    Frame,
-    GroundTruthMap,
-    RadarScan,
-)
+from smokyslam.errors import ConfigError
+from smokyslam.types import CameraFrame, Frame, RadarScan
+
+if TYPE_CHECKING:
+    from smokyslam.config import SmokySlamConfig
 
 _RADAR_STREAM, _CAMERA_STREAM = 1, 2
+_PLAIN_NUMBER = re.compile(r"\d+(\.\d*)?|\.\d+")
+
+
+@dataclass(frozen=True)
+class SmokeLevel:
+    """One smoke level, each number kept as typed (``haze_text`` is "" when haze-free), so
+    folder names read as the user wrote them."""
+
+    radar_loss_text: str
+    camera_noise_text: str
+    haze_text: str = ""
+
+    @classmethod
+    def from_values(cls, radar_loss: float, camera_noise: float, haze: float) -> SmokeLevel:
+        """A level from numbers (written with ``:g``; a haze of 0 is haze-free)."""
+        return cls(f"{radar_loss:g}", f"{camera_noise:g}", f"{haze:g}" if haze else "")
+
+    @property
+    def radar_loss(self) -> float:
+        return float(self.radar_loss_text)
+
+    @property
+    def camera_noise(self) -> float:
+        return float(self.camera_noise_text)
+
+    @property
+    def haze(self) -> float:
+        return float(self.haze_text) if self.haze_text else 0.0
+
+    @property
+    def smoke_label(self) -> str:
+        """``r<loss>-c<noise>``, as typed."""
+        return f"r{self.radar_loss_text}-c{self.camera_noise_text}"
+
+    @property
+    def label(self) -> str:
+        """``r<loss>-c<noise>``, plus ``-h<haze>`` when hazy."""
+        return self.smoke_label + (f"-h{self.haze_text}" if self.haze_text else "")
+
+    @property
+    def notation(self) -> str:
+        """``R:C`` or ``R:C:H``, as ``--smoke`` takes it."""
+        haze = f":{self.haze_text}" if self.haze_text else ""
+        return f"{self.radar_loss_text}:{self.camera_noise_text}{haze}"
+
+    def apply(self, config: SmokySlamConfig) -> SmokySlamConfig:
+        """``config`` with this level's radar loss, camera noise and haze (the other smoke
+        settings, airlight and seed, kept)."""
+        smoke = config.smoke.model_copy(
+            update={
+                "radar_loss": self.radar_loss,
+                "camera_noise": self.camera_noise,
+                "haze": self.haze,
+            }
+        )
+        return config.model_copy(update={"smoke": smoke})
+
+
+def check_number(text: str, name: str, item: str, upper: float | None) -> str:
+    """``text`` checked as a plain decimal in [0, upper] (0 or more without ``upper``) and
+    returned unchanged; ConfigError naming ``name`` and the ``item`` it came from."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"{name} in '{item}' is not a number: '{text}'") from None
+    bound = f"between 0 and {upper:g}" if upper is not None else "0 or more"
+    if not math.isfinite(value) or value < 0 or (upper is not None and value > upper):
+        raise ConfigError(f"{name} in '{item}' must be {bound}, got '{text}'")
+    if not _PLAIN_NUMBER.fullmatch(text):
+        raise ConfigError(f"{name} in '{item}': write a plain decimal such as 0.1, got '{text}'")
+    return text
+
+
+def parse_smoke(text: str) -> SmokeLevel:
+    """``R:C`` or ``R:C:H`` (radar loss and camera noise in [0, 1], haze 1/m, 0 or more) as a
+    level; a haze of 0 is the haze-free level. ConfigError for anything else."""
+    parts = [part.strip() for part in text.strip().split(":")]
+    if len(parts) not in (2, 3):
+        raise ConfigError(
+            f"smoke '{text}' must be radar_loss:camera_noise[:haze], e.g. 0.1:0.2 or 0.1:0.2:0.5"
+        )
+    item = text.strip()
+    loss = check_number(parts[0], "radar_loss", item, 1.0)
+    noise = check_number(parts[1], "camera_noise", item, 1.0)
+    haze = check_number(parts[2], "haze", item, None) if len(parts) == 3 else ""
+    return SmokeLevel(loss, noise, haze if haze and float(haze) else "")
 
 
 def _count(fraction: float, total: int) -> int:
@@ -104,40 +192,3 @@ class SmokeEmulator:
             image = image.copy()
             image.reshape(-1)[pixels] = np.where(salt[pixels], 255, 0).astype(np.uint8)
         return dataclasses.replace(frame, image=image)
-
-
-class SmokedLog:
-    """A log reader whose frames come out through a :class:`SmokeEmulator` (LogReader Protocol).
-
-    Everything but ``frames()`` passes through to the wrapped reader unchanged.
-    """
-
-    def __init__(self, reader: LogReader, config: SmokeConfig) -> None:
-        self.reader = reader
-        self.path = reader.path
-        self.emulator = SmokeEmulator(config)
-
-    def frames(self) -> Iterator[Frame]:
-        return (self.emulator.apply(frame) for frame in self.reader.frames())
-
-    def summary(self) -> LogSummary:
-        return self.reader.summary()
-
-    def ground_truth_map(self) -> GroundTruthMap | None:
-        return self.reader.ground_truth_map()
-
-    def extrinsics(self) -> Extrinsics:
-        return self.reader.extrinsics()
-
-    def camera_intrinsics(self) -> CameraIntrinsics | None:
-        return self.reader.camera_intrinsics()
-
-
-def split_smoke(reader: LogReader) -> tuple[LogReader, SmokeEmulator | None]:
-    """The clean reader behind a :class:`SmokedLog` and its emulator (None for any other
-    reader), for a pipeline that smokes frames where it uses them: only the camera frames it
-    tracks, in the process that tracks them. Smoke is seeded per frame, so the frames come out
-    exactly as the SmokedLog would have given them."""
-    if isinstance(reader, SmokedLog):
-        return reader.reader, reader.emulator
-    return reader, None

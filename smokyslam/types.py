@@ -89,6 +89,18 @@ class GroundTruthPose:
 
 
 @dataclass
+class GroundTruthTrajectory:
+    """The log's ground truth of ``base_link``: (M,) increasing stamps_s and (M, 3)
+    poses_world_base ``[x_m, y_m, yaw_rad]``. Only evaluation reads it; estimators never do."""
+
+    stamps_s: np.ndarray
+    poses_world_base: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.stamps_s)
+
+
+@dataclass
 class GroundTruthMap:
     """Ground-truth occupancy grid: cells[iy, ix] int8 with 100 occupied, 0 free, -1 unknown."""
 
@@ -140,5 +152,6 @@ class Odometry:
     keyframe: bool = True
 
 
-Frame = RadarScan | CameraFrame | ImuSample | GroundTruthPose | GroundTruthMap
-"""Anything a log reader yields."""
+Frame = RadarScan | CameraFrame | ImuSample
+"""What a log reader's ``frames()`` yields: sensor frames only. Ground truth is read apart
+(``ground_truth_trajectory()``, ``ground_truth_map()``), by evaluation."""

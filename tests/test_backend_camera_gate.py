@@ -5,16 +5,15 @@ import numpy as np
 import pytest
 
 from smokyslam.backends.camera_gate import (
-    CameraGate,
     CameraHealth,
     HealthRamp,
     get_camera_gate,
     inflate_covariance,
 )
 from smokyslam.backends.noise import RobustKernel
-from smokyslam.backends.pose_graph import PoseGraph
-from smokyslam.backends.scale import ScaleEstimator, metric_relative_pose
-from smokyslam.config import CameraGateConfig
+from smokyslam.backends.pose_graph import PoseGraph, get_pose_graph
+from smokyslam.backends.scale import get_scale_estimator, metric_relative_pose
+from smokyslam.config import BackendConfig, CameraGateConfig, ScaleConfig
 from smokyslam.errors import EstimationError
 from smokyslam.geometry import se2_between, se2_compose
 
@@ -26,7 +25,7 @@ BLIND_SPAN = range(60, 100)
 
 
 def test_weight_ramps_between_good_and_bad():
-    gate = CameraGate()
+    gate = get_camera_gate(CameraGateConfig())
     assert gate.update(HEALTHY).weight == 1.0
     half_noise = CameraHealth(0.175, 0.2, 200, 0.9)  # halfway on the 0.05..0.30 ramp
     assert gate.update(half_noise).weight == pytest.approx(0.5)
@@ -59,10 +58,11 @@ def run_graph(truth: np.ndarray, use_camera: bool, gated: bool, seed: int):
     """Radar odometry every keyframe; camera relative poses (scale 0.37 before the blind span,
     1.6 after, garbage during it) through the gate and the scale estimator."""
     rng = np.random.default_rng(seed)
-    graph = PoseGraph()
+    graph = get_pose_graph(BackendConfig())
     graph.add_prior(0, truth[0], np.diag([1e-4, 1e-4, 1e-6]))
     graph.optimize()
-    gate, scale = CameraGate(), ScaleEstimator(window=20, min_pairs=5)
+    gate = get_camera_gate(CameraGateConfig())
+    scale = get_scale_estimator(ScaleConfig(window=20, min_pairs=5))
     camera_counts, reentries = [], []
     for j in range(1, len(truth)):
         true_delta = se2_between(truth[j - 1], truth[j])

@@ -4,7 +4,7 @@ recent keyframes, wrong places and large corrections."""
 import numpy as np
 from scipy.spatial import cKDTree
 
-from smokyslam.backends.loop_closure import LoopCloser, get_loop_closer, icp_2d
+from smokyslam.backends.loop_closure import get_loop_closer, icp_2d
 from smokyslam.config import LoopClosureConfig
 from smokyslam.geometry import se2_between, se2_compose, se2_inverse, transform_points_2d
 
@@ -106,7 +106,7 @@ def test_closer_finds_revisits_with_accurate_relative_poses():
 def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
     rng = np.random.default_rng(3)
     truth = out_and_back()
-    closer = LoopCloser(min_index_gap=30)
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=30))
     old = truth[0]
     closer.check(0, truth[:1], submap(old, rng))
     # Too recent: the same place again one keyframe later.
@@ -119,12 +119,12 @@ def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
     poses[39] = [12.0, 8.0, 0.0]
     assert closer.check(39, poses, submap(poses[39], rng)) is None
     # A right match that needs a larger correction than allowed.
-    strict = LoopCloser(min_index_gap=30, max_correction=(0.1, 0.4))
+    strict = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=0.1))
     strict.check(0, truth[:1], submap(old, rng))
     poses = np.array([old] * 40)
     actual = se2_compose(old, [0.4, 0.2, 0.0])
     assert strict.check(39, poses, submap(actual, rng)) is None
-    relaxed = LoopCloser(min_index_gap=30, max_correction=(1.0, 0.4))
+    relaxed = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=1.0))
     relaxed.check(0, truth[:1], submap(old, rng))
     found = relaxed.check(39, poses, submap(actual, rng))
     assert found is not None

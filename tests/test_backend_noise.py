@@ -1,5 +1,5 @@
-"""Noise models honour the reported covariance, floor over-confidence, and down-weight outliers;
-velocity integration propagates the covariance it claims."""
+"""Noise models honour the reported covariance, floor over-confidence, and down-weight
+outliers."""
 
 import gtsam
 import numpy as np
@@ -12,9 +12,7 @@ from smokyslam.backends.noise import (
     pose2_noise,
     tangent_covariance,
 )
-from smokyslam.backends.velocity import VelocityIntegrator, integrate_velocity
 from smokyslam.errors import EstimationError
-from smokyslam.geometry import se2_between, se2_compose
 
 FLOOR = np.array([0.01, 0.01, 0.002])
 
@@ -79,60 +77,3 @@ def test_tangent_covariance_matches_sampled_logmap():
     base = gtsam.Pose2(*delta)
     xi = np.array([gtsam.Pose2.Logmap(base.between(gtsam.Pose2(*s))) for s in samples])
     np.testing.assert_allclose(np.cov(xi.T), tangent_covariance(delta, parent), atol=6e-4)
-
-
-def test_integration_follows_a_constant_turn_arc():
-    speed, rate, seconds, steps = 0.8, 0.5, 2.0, 40
-    dt = np.full(steps, seconds / steps)
-    delta, _ = integrate_velocity(
-        dt,
-        np.tile([speed, 0.0], (steps, 1)),
-        np.tile(np.eye(2) * 1e-4, (steps, 1, 1)),
-        np.full(steps, rate),
-        np.full(steps, 1e-5),
-    )
-    turn = rate * seconds
-    radius = speed / rate
-    np.testing.assert_allclose(
-        delta, [radius * np.sin(turn), radius * (1 - np.cos(turn)), turn], atol=1e-3
-    )
-
-
-def test_integrated_covariance_matches_monte_carlo():
-    rng = np.random.default_rng(1)
-    steps, samples = 10, 20000
-    dt = np.full(steps, 0.1)
-    velocity = np.tile([1.0, 0.1], (steps, 1))
-    velocity_sigma = np.array([0.05, 0.03])
-    rate = np.full(steps, 0.8)
-    delta, covariance = integrate_velocity(
-        dt,
-        velocity,
-        np.tile(np.diag(velocity_sigma**2), (steps, 1, 1)),
-        rate,
-        np.full(steps, 0.05**2),
-    )
-    # Independent oracle: every sample composes exact constant-twist arcs (Pose2 Expmap).
-    pose = np.zeros((samples, 3))
-    for k in range(steps):
-        v = velocity[k] + rng.normal(0.0, velocity_sigma, size=(samples, 2))
-        turn = (rate[k] + rng.normal(0.0, 0.05, size=samples)) * dt[k]
-        a, b = np.sin(turn) / turn, (1.0 - np.cos(turn)) / turn
-        x = (a * v[:, 0] - b * v[:, 1]) * dt[k]
-        y = (b * v[:, 0] + a * v[:, 1]) * dt[k]
-        pose = se2_compose(pose, np.stack([x, y, turn], axis=1))
-    error = se2_between(delta, pose)  # end poses seen from the nominal end: tangent, 1st order
-    sampled = np.cov(error.T)
-    np.testing.assert_allclose(np.diag(covariance), np.diag(sampled), rtol=0.05)
-    assert covariance[1, 2] == pytest.approx(sampled[1, 2], rel=0.05)
-
-
-def test_integrator_collects_until_taken():
-    integrator = VelocityIntegrator()
-    assert integrator.take() is None
-    for _ in range(5):
-        integrator.add(0.1, np.array([0.5, 0.0]), np.eye(2) * 1e-4, 0.0, 1e-6)
-    delta, covariance = integrator.take()
-    np.testing.assert_allclose(delta, [0.25, 0.0, 0.0], atol=1e-12)
-    assert covariance[0, 0] == pytest.approx(5 * 0.01 * 1e-4)
-    assert integrator.take() is None

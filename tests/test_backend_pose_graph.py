@@ -27,7 +27,7 @@ def square_truth(side_steps: int = 5, step_m: float = 1.0) -> np.ndarray:
 def noisy_square_graph(seed: int, with_loop: bool) -> tuple[PoseGraph, np.ndarray, list]:
     truth = square_truth()
     rng = np.random.default_rng(seed)
-    graph = PoseGraph(floor_sigmas=(1e-4, 1e-4, 1e-5))
+    graph = get_pose_graph(BackendConfig(floor_sigmas=(1e-4, 1e-4, 1e-5)))
     graph.add_prior(0, truth[0], PRIOR_COVARIANCE)
     graph.optimize()
     measurements = []
@@ -86,7 +86,7 @@ def test_square_loop_closure_matches_batch_and_beats_odometry():
 
 
 def chain_graph(steps: int, step_covariance: np.ndarray) -> PoseGraph:
-    graph = PoseGraph(floor_sigmas=(1e-4, 1e-4, 1e-5))
+    graph = get_pose_graph(BackendConfig(floor_sigmas=(1e-4, 1e-4, 1e-5)))
     graph.add_prior(0, np.zeros(3), PRIOR_COVARIANCE)
     graph.optimize()
     for j in range(1, steps + 1):
@@ -124,7 +124,7 @@ def test_optimize_without_new_factors_changes_nothing():
 
 
 def test_new_pose_is_initialised_from_the_delta_and_pending_until_optimized():
-    graph = PoseGraph()
+    graph = get_pose_graph(BackendConfig())
     graph.add_prior(0, np.array([1.0, 2.0, np.pi / 2]), PRIOR_COVARIANCE)
     graph.add_between(0, 1, np.array([1.0, 0.0, 0.0]), np.diag([0.1, 0.1, 0.05]) ** 2)
     np.testing.assert_allclose(graph.estimate(1), [1.0, 3.0, np.pi / 2], atol=1e-12)
@@ -137,7 +137,7 @@ def test_new_pose_is_initialised_from_the_delta_and_pending_until_optimized():
 
 
 def test_unlinked_or_unknown_poses_are_refused():
-    graph = PoseGraph()
+    graph = get_pose_graph(BackendConfig())
     with pytest.raises(EstimationError, match="pose 0 does not exist"):
         graph.add_between(0, 1, np.zeros(3), np.eye(3))
     graph.add_prior(0, np.zeros(3), PRIOR_COVARIANCE)

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from smokyslam.backends.noise import RobustKernel
-from smokyslam.backends.pose_graph import PoseGraph
-from smokyslam.config import LoopClosureConfig
+from smokyslam.backends.pose_graph import get_pose_graph
+from smokyslam.config import BackendConfig, LoopClosureConfig
 from smokyslam.geometry import se2_between
 
 ODOMETRY_SIGMAS = np.array([0.02, 0.02, 0.01])  # m, m, rad per 0.25 m step
@@ -31,7 +31,7 @@ def run(
     """ATE (m) of an incremental graph with ``loops`` closures between laps, a fraction wrong."""
     rng = np.random.default_rng(seed)
     truth = laps(count)
-    graph = PoseGraph()
+    graph = get_pose_graph(BackendConfig())
     graph.add_prior(0, truth[0], np.diag([1e-4, 1e-4, 1e-6]))
     graph.optimize()
     pairs = rng.choice(len(truth) - LAP_STEPS, size=loops, replace=False)

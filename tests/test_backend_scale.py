@@ -32,7 +32,7 @@ def feed(estimator: ScaleEstimator, metric: np.ndarray, scale: float, rng) -> Sc
 def test_scaled_camera_translations_come_out_metric():
     rng = np.random.default_rng(0)
     true_scale = 1.0 / 0.37  # the camera reports 0.37 units per metre
-    estimator = ScaleEstimator(window=30, min_pairs=5)
+    estimator = get_scale_estimator(ScaleConfig(window=30, min_pairs=5))
     estimate = feed(estimator, motions(rng, 30), true_scale, rng)
     # Over 200 seeds: mean error 0.3%, std 1.5%, worst 3.5%; the reported sigma was 1.3%.
     assert estimate.scale == pytest.approx(true_scale, rel=0.04)
@@ -49,7 +49,7 @@ def test_scaled_camera_translations_come_out_metric():
 
 def test_outlier_pairs_do_not_bias_the_scale():
     rng = np.random.default_rng(1)
-    estimator = ScaleEstimator(window=30, min_pairs=5)
+    estimator = get_scale_estimator(ScaleConfig(window=30, min_pairs=5))
     metric = motions(rng, 30)
     estimate = None
     for k, t in enumerate(metric):
@@ -73,6 +73,6 @@ def test_reset_starts_a_fresh_scale():
 
 
 def test_short_motions_carry_no_scale():
-    estimator = ScaleEstimator(min_pairs=2, min_translation_m=0.05)
+    estimator = get_scale_estimator(ScaleConfig(min_pairs=2, min_translation_m=0.05))
     for _ in range(5):
         assert estimator.update(np.array([0.01, 0.0]), np.array([0.01, 0.0])) is None

@@ -49,7 +49,7 @@ def walk():
 
 
 def run(renderer, images, config=None):
-    odometry = CameraOdometry(renderer.intrinsics, config or CameraOdometryConfig())
+    odometry = CameraOdometry(renderer.intrinsics, config or CameraOdometryConfig(), None)
     return [
         odometry.track(CameraFrame(i / RATE_HZ, image, renderer.intrinsics))
         for i, image in enumerate(images)
@@ -120,7 +120,7 @@ def test_walk_is_tracked_up_to_scale(renderer, walk):
     landmarks = odometry.landmarks_world()
     assert landmarks.shape[1] == 3 and len(landmarks) > 300
     assert np.isfinite(landmarks).all()
-    assert not results[0].metric_scale
+    assert results[0].metres_per_unit is None  # no camera height given: up to scale
 
 
 def test_walk_survives_salt_and_pepper_noise(renderer, walk):

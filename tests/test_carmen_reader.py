@@ -14,7 +14,7 @@ from smokyslam.frontends.radar.odometry import DeadReckoning
 from smokyslam.frontends.readers.carmen import CarmenReader
 from smokyslam.frontends.readers.carmen_emulation import beam_bearings, detect_no_return
 from smokyslam.geometry import se2_between
-from smokyslam.types import GroundTruthPose, ImuSample, RadarScan
+from smokyslam.types import ImuSample, RadarScan
 
 
 def _quiet_config(**carmen) -> SmokySlamConfig:
@@ -42,9 +42,10 @@ def test_malformed_lines_are_skipped_and_counted(tmp_path, caplog):
     reader = CarmenReader(write_carmen_log(tmp_path / "a.log", poses), SmokySlamConfig())
     assert reader.skipped_lines == 4
     assert "skipped 4 malformed" in caplog.text
-    gt = [f for f in reader.frames() if isinstance(f, GroundTruthPose)]
-    assert len(gt) == len(poses)
-    np.testing.assert_allclose([g.pose_world_base for g in gt], poses, atol=1e-6)
+    truth = reader.ground_truth_trajectory()
+    assert len(truth) == len(poses)
+    np.testing.assert_allclose(truth.poses_world_base, poses, atol=1e-6)
+    np.testing.assert_allclose(truth.stamps_s, reader.stamps_s)
     summary = reader.summary()
     assert summary.format == "carmen"
     assert summary.streams[0].count == len(poses)
@@ -59,10 +60,10 @@ def test_frames_order_and_nominal_stamps(tmp_path):
     kinds = [(type(f).__name__, f.stamp_s) for f in reader.frames()]
     assert kinds[:5] == [
         ("RadarScan", 0.0),
-        ("GroundTruthPose", 0.0),
         ("ImuSample", 0.5),
         ("RadarScan", 0.5),
-        ("GroundTruthPose", 0.5),
+        ("ImuSample", 1.0),
+        ("RadarScan", 1.0),
     ]
     assert reader.summary().duration_s == pytest.approx(1.5)
 

@@ -212,3 +212,62 @@ def test_ti_bag_runs_radar_only_with_its_calibration(real_data_dir, tmp_path):
     assert len(stamps) == 412
     agreement = evaluate_trajectory(stamps, radar, *poses["dead-reckoning"], alignment="se2")
     assert agreement.ate_rmse_m < 0.3
+
+
+def test_smoke_notation_equals_the_single_options(office_log, tmp_path):
+    runs = {}
+    for name, smoke in (
+        ("notation", ["--smoke", "0.1:0.2:0.5"]),
+        ("aliases", ["--radar-loss", "0.1", "--camera-noise", "0.2", "--haze", "0.5"]),
+    ):
+        out_dir = tmp_path / name
+        out = smokyslam("run", office_log, "--odometry", "radar", *smoke, "--out", out_dir)
+        assert out.returncode == 0, out.stderr
+        runs[name] = out_dir
+    smoke = load_config(runs["notation"] / "config.yaml").smoke
+    assert (smoke.radar_loss, smoke.camera_noise, smoke.haze) == (0.1, 0.2, 0.5)
+    assert load_config(runs["aliases"] / "config.yaml") == load_config(
+        runs["notation"] / "config.yaml"
+    )
+    trajectories = [(d / "trajectory.tum").read_text() for d in runs.values()]
+    assert trajectories[0] == trajectories[1]
+    info = smokyslam("info", office_log, "--smoke", "0.1:0.2:0.5")
+    assert info.returncode == 0 and "smoke at replay: 0.1:0.2:0.5" in info.stdout
+
+
+def test_a_folder_holding_a_run_is_refused_without_overwrite(office_log, tmp_path):
+    out_dir = tmp_path / "run"
+    first = smokyslam("run", office_log, "--odometry", "camera", "--out", out_dir)
+    assert first.returncode == 0, first.stderr
+    assert (out_dir / "maps/visual.pgm").is_file()
+    (out_dir / "notes.txt").write_text("mine")
+    again = smokyslam("run", office_log, "--odometry", "dead-reckoning", "--out", out_dir)
+    assert again.returncode == 1 and "Traceback" not in again.stderr
+    lines = again.stderr.strip().splitlines()
+    assert len(lines) == 1 and "holds an earlier run" in lines[0] and "--overwrite" in lines[0]
+    replaced = smokyslam(
+        "run", office_log, "--odometry", "dead-reckoning", "--out", out_dir, "--overwrite"
+    )
+    assert replaced.returncode == 0, replaced.stderr
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert metrics["odometry"]["source"] == "dead-reckoning" and set(metrics["maps"]) == {
+        "radar_sparse"
+    }
+    assert not (out_dir / "maps/visual.pgm").exists()  # nothing of the camera run survives
+    assert (out_dir / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--smoke", "0.1:0.2", "--radar-loss", "0.1"], "not both"),
+        (["--smoke", "0.1"], "radar_loss:camera_noise[:haze]"),
+        (["--smoke", "0.1:2"], "camera_noise in '0.1:2' must be between 0 and 1"),
+    ],
+)
+def test_bad_smoke_options_are_one_clear_line(office_log, tmp_path, args, message):
+    out = smokyslam("run", office_log, *args, "--out", tmp_path / "x")
+    assert out.returncode == 1 and "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], out.stderr
+    assert not (tmp_path / "x").exists()

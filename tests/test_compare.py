@@ -9,22 +9,20 @@ import numpy as np
 import pytest
 
 from smokyslam.config import load_config
-from smokyslam.errors import ConfigError, EstimationError, LogError
-from smokyslam.evaluation.compare_plot import aligned_trajectory
+from smokyslam.errors import ConfigError, EstimationError, LogError, OutputError
+from smokyslam.evaluation.compare_plot import run_paths
+from smokyslam.evaluation.compare_table import CompareRow, RunStatus
 from smokyslam.evaluation.trajectory_io import write_tum
-from smokyslam.evaluation.trajectory_metrics import Alignment, Similarity2D
-from smokyslam.pipelines import run as run_module
+from smokyslam.pipelines import compare as compare_module
 from smokyslam.pipelines.compare import (
     CompareJob,
-    CompareRow,
-    RunStatus,
-    SmokeLevel,
     compare,
     parse_smoke_levels,
     parse_sources,
     run_job,
     run_jobs,
 )
+from smokyslam.smoke import SmokeLevel
 
 HEADER = [
     "source",
@@ -39,6 +37,7 @@ HEADER = [
     "map",
     "map_error_index",
     "map_f1",
+    "ate_sim2_rmse_m",
     "status",
     "error",
 ]
@@ -52,6 +51,14 @@ def test_smoke_levels_keep_the_numbers_as_typed():
         (0.1, 0.2, 0.0),
         (0.2, 0.4, 0.0),
     ]
+
+
+def test_levels_take_haze_in_the_smoke_notation_too():
+    levels = parse_smoke_levels("0:0,0.1:0.2:0.5,0.1:0.2")
+    assert [level.label for level in levels] == ["r0-c0", "r0.1-c0.2-h0.5", "r0.1-c0.2"]
+    # --haze crosses the levels given without a haze of their own
+    crossed = parse_smoke_levels("0:0,0.1:0.2:0.5", "0.3")
+    assert [level.label for level in crossed] == ["r0-c0", "r0.1-c0.2-h0.5", "r0-c0-h0.3"]
 
 
 def test_haze_values_add_hazy_copies_of_every_smoke_level():
@@ -73,7 +80,8 @@ def test_haze_values_add_hazy_copies_of_every_smoke_level():
     ("smoke", "haze", "message"),
     [
         ("0.1", None, "radar_loss:camera_noise"),
-        ("0:0:0", None, "radar_loss:camera_noise"),
+        ("0:0:0:0", None, "radar_loss:camera_noise"),
+        ("0:0:x", None, "haze in '0:0:x' is not a number"),
         ("a:b", None, "radar_loss in 'a:b' is not a number"),
         ("-1:0", None, "radar_loss in '-1:0' must be between 0 and 1"),
         ("2:0", None, "radar_loss in '2:0' must be between 0 and 1"),
@@ -148,9 +156,8 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
         ("radar", "r0.1-c0.2", "ok"),
         ("dead-reckoning", "r0.1-c0.2", "failed"),
     ]
-    # Raised and caught in the worker, so the message names the folder that was in the way.
-    assert result.failed[0].error.startswith("FileExistsError: ")
-    assert "dead-reckoning-r0.1-c0.2" in result.failed[0].error
+    # Raised and caught in the worker: the message names the folder that was in the way.
+    assert result.failed[0].error.endswith("dead-reckoning-r0.1-c0.2: exists and is not a folder")
 
     with result.csv_path.open() as stream:
         table = list(csv.reader(stream))
@@ -177,12 +184,12 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
     # Dropping 10% of the radar returns changes radar odometry's answer.
     assert rows[0]["ate_rmse_m"] != rows[2]["ate_rmse_m"]
     failed = rows[3]
-    assert failed["status"] == "failed" and "FileExistsError" in failed["error"]
+    assert failed["status"] == "failed" and "is not a folder" in failed["error"]
     assert failed["ate_rmse_m"] == "" and failed["map"] == ""
 
     markdown = result.markdown_path.read_text().splitlines()
     assert len(markdown) == 6 and markdown[0] == "| " + " | ".join(HEADER) + " |"
-    assert "| failed | FileExistsError" in markdown[5]
+    assert "| failed | --out " in markdown[5]
     assert load_config(result.config_path) == config
 
     for png in (result.trajectories_png, result.ate_png):
@@ -191,17 +198,14 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
         assert _coloured_pixels(png, (255, 127, 14)) > 100  # dead reckoning, tab:orange
 
 
-def _broken(reader, config, on_progress=None):
-    raise EstimationError("the pose graph is degenerate")
-
-
-def _buggy(reader, config, on_progress=None):
-    return {}["missing"]
+def _failing_run(log_path, source, config, run_dir, **options):
+    if source == "broken":
+        raise EstimationError("the pose graph is degenerate")
+    return {}["missing"]  # a bug, not a SmokySlamError
 
 
 def test_a_run_that_raises_becomes_a_failed_row(office_log, tmp_path, monkeypatch):
-    monkeypatch.setitem(run_module.SOURCES, "broken", (_broken, ("radar",), Alignment.SE2))
-    monkeypatch.setitem(run_module.SOURCES, "buggy", (_buggy, ("radar",), Alignment.SE2))
+    monkeypatch.setattr(compare_module, "run_log", _failing_run)
     level = SmokeLevel("0.1", "0.2")
     job = CompareJob("broken", level, office_log, load_config(), tmp_path / "broken-r0.1-c0.2")
     row = run_job(job)
@@ -230,20 +234,30 @@ def test_a_missing_log_fails_before_any_run(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_plotted_paths_are_aligned_as_their_ate_was(tmp_path):
+def test_plots_read_the_paths_as_the_runs_wrote_them(tmp_path):
     stamps_s = np.linspace(0.0, 10.0, 50)
     gt = np.column_stack([np.cos(stamps_s / 3), np.sin(stamps_s / 2), stamps_s / 5]) * 4.0
-    # A camera-like estimate: a third of the size, turned by 30 degrees, shifted.
-    similarity = Similarity2D(np.radians(30.0), np.array([1.0, -2.0]), scale=1 / 3)
+    estimate = gt + np.array([0.05, -0.02, 0.0])  # in the ground-truth frame, as runs write
     write_tum(tmp_path / "ground_truth.tum", stamps_s, gt)
-    write_tum(tmp_path / "trajectory.tum", stamps_s, similarity.apply(gt))
-    level = SmokeLevel("0", "0")
-    errors_m = {}
-    for alignment in ("sim2", "se2"):
-        metrics = {"trajectory": {"ate_alignment": alignment}}
-        row = CompareRow("camera", level, tmp_path, RunStatus.OK, metrics=metrics)
-        aligned, truth = aligned_trajectory(row)
-        assert np.allclose(truth[:, :2], gt[:, :2], atol=1e-6)
-        errors_m[alignment] = np.sqrt(np.mean(np.sum((aligned[:, :2] - gt[:, :2]) ** 2, axis=1)))
-    assert errors_m["sim2"] < 1e-6  # scale recovered: the path lies on the truth
-    assert errors_m["se2"] > 1.0  # a rigid fit cannot undo the third
+    write_tum(tmp_path / "trajectory.tum", stamps_s, estimate)
+    row = CompareRow("camera", SmokeLevel("0", "0"), tmp_path, RunStatus.OK)
+    poses, truth = run_paths(row)
+    np.testing.assert_allclose(poses[:, :2], estimate[:, :2], atol=1e-6)
+    np.testing.assert_allclose(truth[:, :2], gt[:, :2], atol=1e-6)
+    (tmp_path / "ground_truth.tum").unlink()
+    assert run_paths(row)[1] is None
+
+
+def test_a_finished_comparison_is_not_overwritten_by_accident(office_log, tmp_path):
+    out = tmp_path / "cmp"
+    out.mkdir()
+    (out / "compare.csv").write_text("source\n")
+    (out / "notes.txt").write_text("mine")
+    levels = parse_smoke_levels("0:0")
+    with pytest.raises(OutputError, match="--overwrite"):
+        compare(office_log, ["dead-reckoning"], levels, load_config(), out, workers=1)
+    result = compare(
+        office_log, ["dead-reckoning"], levels, load_config(), out, workers=1, overwrite=True
+    )
+    assert [row.status for row in result.rows] == ["ok"]
+    assert (out / "notes.txt").read_text() == "mine"  # only the comparison's own files go

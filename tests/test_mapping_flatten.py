@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from smokyslam.config import MappingConfig
 from smokyslam.mapping.flatten import flatten_points, occupied_cells_from_points
-from smokyslam.mapping.grid import OccupancyGrid
+from smokyslam.mapping.grid import OccupancyGrid, get_occupancy_grid
 
 
 def _cell_value(grid: OccupancyGrid, xy_m) -> int:
@@ -39,7 +40,7 @@ def test_flatten_marks_obstacles_and_free_space_from_the_camera():
     rng = np.random.default_rng(0)
     wall_y = rng.uniform(-1.0, 1.0, 3000)  # a wall at x = 3 m seen from (0, 0)
     points = np.column_stack([np.full(3000, 3.02), wall_y, rng.uniform(0.3, 1.8, 3000)])
-    grid = OccupancyGrid()
+    grid = get_occupancy_grid(MappingConfig())
     occupied = flatten_points(grid, points, np.array([0.0, 0.0]))
     assert set(occupied[:, 0].tolist()) == {30}
     assert len(occupied) == 20  # y from -1 to 1 m in 0.1 m cells
@@ -54,7 +55,7 @@ def test_per_point_cameras_cast_from_where_each_point_was_seen():
     wall = np.column_stack([np.full(40, 2.02), np.repeat(np.linspace(-0.95, 0.95, 20), 2)])
     points = np.column_stack([np.tile(wall, (2, 1)), np.full(80, 1.0)])
     cameras = np.concatenate([np.tile([0.0, -3.0], (40, 1)), np.tile([0.0, 3.0], (40, 1))])
-    grid = OccupancyGrid()
+    grid = get_occupancy_grid(MappingConfig())
     occupied = flatten_points(grid, points, cameras, min_points_per_cell=3)
     assert len(occupied) == 20  # two points per camera, four per cell in all
     assert _cell_value(grid, [0.5, -2.0]) == 0  # on a ray from the first camera
@@ -71,7 +72,7 @@ def test_a_million_points_flatten():
     x = np.select([side == 0, side == 1, side == 2], [s, 10.0, 10.0 - s], 0.0)
     y = np.select([side == 0, side == 1, side == 2], [0.0, s, 10.0], 10.0 - s)
     points = np.column_stack([x + 0.05, y + 0.05, rng.uniform(0.0, 2.5, n)])
-    grid = OccupancyGrid()
+    grid = get_occupancy_grid(MappingConfig())
     occupied = flatten_points(grid, points, np.array([5.0, 5.0]))
     assert 390 <= len(occupied) <= 404
     cells = grid.to_cells()

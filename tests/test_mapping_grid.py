@@ -12,6 +12,11 @@ from smokyslam.mapping.grid import OccupancyGrid, get_occupancy_grid, resample_n
 from smokyslam.mapping.raycast import raycast
 
 
+def _grid(**mapping) -> OccupancyGrid:
+    """A grid of the mapping config with ``mapping`` overrides."""
+    return get_occupancy_grid(MappingConfig(**mapping))
+
+
 def _value(grid: OccupancyGrid, cell) -> float:
     """Log-odds of a world cell, via the grid's spec (independent of its internals)."""
     centre = (np.asarray(cell, dtype=float) + 0.5) * grid.resolution_m
@@ -20,7 +25,7 @@ def _value(grid: OccupancyGrid, cell) -> float:
 
 
 def test_duplicates_count_once_and_hit_wins_over_pass():
-    grid = OccupancyGrid(log_odds_hit=0.9, log_odds_miss=-0.4)
+    grid = _grid(log_odds_hit=0.9, log_odds_miss=-0.4)
     free = [[0, 0], [0, 0], [1, 0], [2, 0]]
     grid.update(free, [[2, 0], [2, 0], [5, 5]])
     assert _value(grid, [0, 0]) == pytest.approx(-0.4)
@@ -31,7 +36,7 @@ def test_duplicates_count_once_and_hit_wins_over_pass():
 
 
 def test_clamping_and_decisive_weight():
-    grid = OccupancyGrid(log_odds_hit=0.85, log_odds_miss=-0.4, log_odds_min=-2, log_odds_max=3.5)
+    grid = _grid(log_odds_hit=0.85, log_odds_miss=-0.4, log_odds_min=-2, log_odds_max=3.5)
     for _ in range(10):
         grid.update([[0, 0]], [[1, 1]])
     assert _value(grid, [0, 0]) == pytest.approx(-2.0)
@@ -42,7 +47,7 @@ def test_clamping_and_decisive_weight():
 
 
 def test_probability_and_trinary_cells():
-    grid = OccupancyGrid(log_odds_hit=0.85, log_odds_miss=-0.4)
+    grid = _grid(log_odds_hit=0.85, log_odds_miss=-0.4)
     grid.update([[0, 0]], [[1, 0]])
     for passes in range(1, 5):
         grid.update([[2, 0], [3, 0]] if passes < 4 else [[3, 0]], [])
@@ -63,7 +68,7 @@ def test_probability_and_trinary_cells():
 
 
 def test_growth_keeps_content_aligns_to_world_and_is_amortized():
-    grid = OccupancyGrid(resolution_m=0.1, grow_margin_cells=8)
+    grid = OccupancyGrid(0.1, 0.85, -0.75, -2.0, 3.5, 0.65, 0.196, grow_margin_cells=8)
     grid.update([], [[0, 0]])
     spec0 = grid.spec
     assert np.allclose(
@@ -87,21 +92,21 @@ def test_insert_rays_equals_update_of_raycast_and_pieces_agree(monkeypatch):
     rng = np.random.default_rng(0)
     ends = rng.integers(-40, 40, (300, 2))
     max_range = rng.random(300) < 0.2
-    reference = OccupancyGrid()
+    reference = _grid()
     free, hits = raycast([1, 2], ends, max_range)
     reference.update(free, hits)
-    grid = OccupancyGrid()
+    grid = _grid()
     grid.insert_rays([1, 2], ends, max_range)
     np.testing.assert_array_equal(grid.to_cells(), reference.to_cells())
     np.testing.assert_allclose(grid.log_odds, reference.log_odds)
     monkeypatch.setattr(grid_module, "_RAY_CELLS_PER_PIECE", 200)  # the masked, pieced path
-    pieced = OccupancyGrid()
+    pieced = _grid()
     pieced.insert_rays([1, 2], ends, max_range)
     np.testing.assert_allclose(pieced.log_odds, reference.log_odds)
 
 
 def test_runaway_growth_is_a_clear_error():
-    grid = OccupancyGrid()
+    grid = _grid()
     grid.update([], [[0, 0]])
     with pytest.raises(MapError, match="diverging"):
         grid.update([], [[400_000, 400_000]])

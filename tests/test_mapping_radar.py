@@ -1,4 +1,4 @@
-"""Radar local grid, keyframe gate, both stitching methods, rebuild, and ground-truth mapping."""
+"""Radar local grid, the keyframe gate, both stitching methods, and ground-truth mapping."""
 
 from __future__ import annotations
 
@@ -7,15 +7,17 @@ import math
 import numpy as np
 import pytest
 
+from smokyslam.backends.keyframes import KeyframeGate, get_keyframe_gate, keyframe_mask
 from smokyslam.benchmarks.mapping import first_hit_ranges
-from smokyslam.config import MappingConfig
+from smokyslam.config import KeyframeConfig, MappingConfig
 from smokyslam.evaluation.map_metrics import evaluate_map
 from smokyslam.geometry import se2_compose, se3_from_se2, transform_points_2d
 from smokyslam.mapping.build import build_radar_map
-from smokyslam.mapping.grid import OccupancyGrid
-from smokyslam.mapping.radar_mapper import RadarGridMapper, get_radar_mapper, radar_local_grid
+from smokyslam.mapping.radar_mapper import get_radar_mapper, radar_local_grid
 from smokyslam.sim.world import box_world
-from smokyslam.types import Extrinsics, GroundTruthPose, RadarScan
+from smokyslam.types import Extrinsics, GroundTruthTrajectory, RadarScan
+
+GATE = get_keyframe_gate(KeyframeConfig())
 
 AZIMUTHS = np.linspace(-math.radians(60), math.radians(60), 121)
 
@@ -48,22 +50,26 @@ def test_local_grid_is_the_scan_in_the_radar_frame():
     assert local.spec.cells_of(np.array([[1.0, 0.0]]))[0].tolist() == [c + 10, c]
 
 
-def test_keyframe_gate_on_translation_rotation_and_empty_scans():
-    mapper = RadarGridMapper(OccupancyGrid(), keyframe_translation_m=0.2)
-    scan = _scan([[2.0, 0.0]])
-    assert not mapper.insert(_scan(np.zeros((0, 2))), np.zeros(3))  # nothing to insert
-    assert mapper.insert(scan, np.array([0.0, 0.0, 0.0]))  # first frame
-    assert not mapper.insert(scan, np.array([0.15, 0.15, 0.3]))
-    assert mapper.insert(scan, np.array([0.0, 0.21, 0.0]))  # y moved 0.21
-    assert not mapper.insert(scan, np.array([0.0, 0.21, math.pi / 8 - 0.01]))
-    assert mapper.insert(scan, np.array([0.0, 0.21, -math.pi / 8 - 0.01]))  # turned
-    assert mapper.insert(scan, np.array([-0.2, 0.21, -math.pi / 8 - 0.01]))  # x moved 0.2
-    assert len(mapper.keyframe_scans) == 4
+def test_keyframe_gate_on_translation_and_rotation_in_the_last_keyframe_frame():
+    gate = KeyframeGate(0.2, math.pi / 8)
+    poses = np.array(
+        [
+            [0.0, 0.0, 0.0],  # first frame: always a keyframe
+            [0.15, 0.15, 0.3],
+            [0.0, 0.21, 0.0],  # y moved 0.21
+            [0.0, 0.21, math.pi / 8 - 0.01],
+            [0.0, 0.21, -math.pi / 8 - 0.01],  # turned
+            [-0.2, 0.21, -math.pi / 8 - 0.01],  # 0.2 m in the world, 0.18 m along its x
+            [-0.25, 0.21, -math.pi / 8 - 0.01],  # 0.23 m along its x
+        ]
+    )
+    assert keyframe_mask(gate, poses).tolist() == [True, False, True, False, True, False, True]
+    assert gate.passes(np.array([0.0, -0.2, 0.0])) and not gate.passes(np.array([0.1, 0.1, 0.1]))
 
 
 def _rotating_sensor_map(method: str):
     world = box_world()
-    mapper = RadarGridMapper(OccupancyGrid(), stitch_method=method)
+    mapper = get_radar_mapper(MappingConfig(stitch_method=method))
     for k in range(48):  # three turns, mostly at headings off the grid axes
         pose = np.array([2.0 + 0.08 * k, 2.0 + 0.02 * k, 0.1 + k * (math.pi / 8 + 0.01)])
         assert mapper.insert(_exact_scan(world, pose, float(k)), pose)
@@ -83,28 +89,16 @@ def test_both_stitching_methods_on_a_rotating_sensor():
         assert metrics["occupied_recall"] > 0.98 and metrics["occupied_precision"] > 0.98
 
 
-def test_rebuild_reproduces_the_map_and_follows_moved_poses():
-    mapper, _ = _rotating_sensor_map("raycast")
-    original = mapper.grid
-    scans, poses = list(mapper.keyframe_scans), list(mapper.keyframe_poses)
-    rebuilt = mapper.rebuild(scans, poses)
-    np.testing.assert_array_equal(rebuilt.log_odds, original.log_odds)
-    assert rebuilt.spec == original.spec
-    shifted = mapper.rebuild(scans, [p + np.array([1.0, 0.0, 0.0]) for p in poses])
-    occupied = shifted.spec.centres_of(np.argwhere(shifted.to_cells() == 100)[:, ::-1])
-    assert occupied[:, 0].min() == pytest.approx(0.95, abs=0.11)  # west wall, one metre east
-
-
-def _stream(world, T_base_radar: np.ndarray, scan_lag_s: float = 0.0):
-    """Poses at 20 Hz, and scans (radar frame) that arrive before the poses around them."""
+def _stream(world, T_base_radar: np.ndarray):
+    """Ground-truth poses at 20 Hz, and scans (radar frame) between them."""
     pose_base_radar = np.array(
         [T_base_radar[0, 3], T_base_radar[1, 3], math.atan2(T_base_radar[1, 0], T_base_radar[0, 0])]
     )
-    frames = []
+    frames, stamps, poses = [], [], []
     for i in range(40):
         t = 0.05 * i
-        base = np.array([2.0 + 0.5 * t, 3.0, 0.8 * t])
-        frames.append(GroundTruthPose(t, base))
+        stamps.append(t)
+        poses.append([2.0 + 0.5 * t, 3.0, 0.8 * t])
         if i % 2 == 1 and i < 39:
             stamp = t + 0.025  # between poses; listed before the next pose arrives
             base_at = np.array([2.0 + 0.5 * stamp, 3.0, 0.8 * stamp])
@@ -117,7 +111,7 @@ def _stream(world, T_base_radar: np.ndarray, scan_lag_s: float = 0.0):
             R, t_ = T_base_radar[:3, :3], T_base_radar[:3, 3]
             level.points_xyz_m = (points_base - t_) @ R
             frames.append(level)
-    return frames
+    return frames, GroundTruthTrajectory(np.array(stamps), np.array(poses))
 
 
 def test_build_radar_map_applies_poses_and_extrinsics():
@@ -133,7 +127,8 @@ def test_build_radar_map_applies_poses_and_extrinsics():
     rolled[:3, :3] = np.diag([1.0, -1.0, -1.0])  # upside down: y and z flip
     mounts.append(rolled)
     for T in mounts:
-        grid = build_radar_map(_stream(world, T), Extrinsics(T_base_radar=T), config)
+        scans, truth_poses = _stream(world, T)
+        grid = build_radar_map(scans, truth_poses, Extrinsics(T_base_radar=T), config, GATE)
         results.append(evaluate_map(grid.to_cells(), grid.spec, truth, world.spec))
     for metrics in results:
         assert metrics["occupied_precision"] > 0.98
@@ -142,17 +137,16 @@ def test_build_radar_map_applies_poses_and_extrinsics():
     assert results[2]["error_index"] < 0.3
 
 
-def test_build_radar_map_drops_scans_without_poses_and_uses_the_factory():
+def test_build_radar_map_drops_scans_outside_the_ground_truth():
     world = box_world()
     pose = np.array([4.0, 3.0, 0.0])
     early = _exact_scan(world, pose, stamp_s=-1.0)  # long before the first pose
-    ok = _exact_scan(world, pose, stamp_s=0.1)  # arrives before the pose after it
+    ok = _exact_scan(world, pose, stamp_s=0.1)
     late = _exact_scan(world, pose, stamp_s=5.0)  # long after the last pose
-    frames = [early, GroundTruthPose(0.0, pose), ok, GroundTruthPose(0.2, pose), late]
-    mapper = get_radar_mapper(MappingConfig(keyframe_translation_m=0.0))
-    build_radar_map(frames, Extrinsics(), MappingConfig(), mapper=mapper)
-    assert [s.stamp_s for s in mapper.keyframe_scans] == [0.1]
-    grid = build_radar_map([GroundTruthPose(0.0, pose), ok], Extrinsics(), MappingConfig())
+    truth = GroundTruthTrajectory(np.array([0.0, 0.2]), np.array([pose, pose]))
+    alone = build_radar_map([ok], truth, Extrinsics(), MappingConfig(), GATE)
+    grid = build_radar_map([early, ok, late], truth, Extrinsics(), MappingConfig(), GATE)
+    np.testing.assert_array_equal(grid.to_cells(), alone.to_cells())
     assert (grid.to_cells() == 100).sum() > 20
 
 

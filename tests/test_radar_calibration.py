@@ -8,7 +8,7 @@ import pytest
 from smokyslam.config import load_config
 from smokyslam.errors import ConfigError
 from smokyslam.frontends.readers.registry import open_log
-from smokyslam.pipelines.odometry import run_radar_odometry
+from smokyslam.pipelines.run import run_source
 from smokyslam.rig import extrinsics_from_calibration
 from smokyslam.types import RadarScan
 
@@ -69,6 +69,9 @@ class _UpsideDownRadar:
     def __init__(self, reader, calibrated: bool) -> None:
         self.reader, self.path, self.calibrated = reader, reader.path, calibrated
 
+    def __getattr__(self, name):
+        return getattr(self.reader, name)
+
     def frames(self):
         for frame in self.reader.frames():
             if isinstance(frame, RadarScan):
@@ -87,9 +90,9 @@ def test_upside_down_radar_tracks_like_an_upright_one_once_calibrated(office_log
     """Scans are levelled through the mount before odometry, so the gyro and the scans turn
     the same way; without the calibration the flipped scans contradict the gyro."""
     config = load_config()
-    upright = run_radar_odometry(open_log(office_log, config), config)
-    flipped = run_radar_odometry(_UpsideDownRadar(open_log(office_log, config), True), config)
+    upright = run_source(open_log(office_log, config), "radar", config)
+    flipped = run_source(_UpsideDownRadar(open_log(office_log, config), True), "radar", config)
     np.testing.assert_allclose(flipped.poses_world_base, upright.poses_world_base, atol=1e-6)
-    wrong = run_radar_odometry(_UpsideDownRadar(open_log(office_log, config), False), config)
+    wrong = run_source(_UpsideDownRadar(open_log(office_log, config), False), "radar", config)
     error_xy = wrong.poses_world_base[:, :2] - upright.poses_world_base[:, :2]
     assert np.linalg.norm(error_xy, axis=1).max() > 1.0

@@ -13,7 +13,7 @@ import pytest
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.readers.carmen import CarmenReader
 from smokyslam.frontends.readers.registry import config_for_log
-from smokyslam.pipelines.odometry import evaluate_run, run_radar_odometry
+from smokyslam.pipelines.run import evaluate_source, run_source
 
 
 @pytest.fixture(scope="module")
@@ -35,9 +35,10 @@ def test_radar_odometry_beats_dead_reckoning_on_the_intel_log(intel):
     config = config_for_log(intel.path, SmokySlamConfig())
     assert config.radar_odometry.map_radius_m == config.carmen.map_radius_m
     assert config.radar_odometry.gyro_bias_sigma_degps == 0.0
-    dead = evaluate_run(run_radar_odometry(intel, config, "dead-reckoning"))
-    radar_run = run_radar_odometry(intel, config, "radar")
-    radar = evaluate_run(radar_run)
+    truth = intel.ground_truth_trajectory()
+    dead_run, radar_run = (run_source(intel, s, config) for s in ("dead-reckoning", "radar"))
+    dead = evaluate_source(dead_run, truth, "dead-reckoning").trajectory
+    radar = evaluate_source(radar_run, truth, "radar").trajectory
     assert dead.path_length_m == pytest.approx(499.5, abs=0.5)
     assert radar.frames == 910 and radar.lost_frames == 0
     assert dead.drift_pct < 1.0

@@ -11,16 +11,18 @@ import pytest
 
 from smokyslam.config import load_config
 from smokyslam.frontends.readers.registry import open_log
-from smokyslam.pipelines.odometry import evaluate_run, run_radar_odometry
-from smokyslam.smoke import SmokedLog
+from smokyslam.pipelines.run import evaluate_source, run_source
 
 
 @pytest.mark.parametrize("radar_loss", [0.0, 0.1])
 def test_radar_odometry_beats_dead_reckoning_on_a_simulated_office(office_log, radar_loss):
     config = load_config(None, {"smoke": {"radar_loss": radar_loss}})
-    reader = SmokedLog(open_log(office_log, config), config.smoke)
-    dead = evaluate_run(run_radar_odometry(reader, config, "dead-reckoning"))
-    radar = evaluate_run(run_radar_odometry(reader, config, "radar"))
+    reader = open_log(office_log, config)
+    truth = reader.ground_truth_trajectory()
+    dead, radar = (
+        evaluate_source(run_source(reader, s, config), truth, s).trajectory
+        for s in ("dead-reckoning", "radar")
+    )
     assert radar.lost_frames == 0
     assert radar.ate_rmse_m < 0.85 * dead.ate_rmse_m
     assert radar.drift_pct < 2.0

@@ -26,8 +26,12 @@ def test_a_run_recording_reads_back_with_every_entity(tmp_path):
     poses = np.column_stack([stamps, np.zeros(5), np.zeros(5)])
     scans = [RadarScan(t, np.array([[2.0, 0.0, 0.0]]), np.ones(1), np.zeros(1)) for t in stamps]
     recorder = open_recorder(tmp_path / "run.rrd")
+    recorder.log_rig(Extrinsics())
+    for stamp_s, pose, scan in zip(stamps, poses, scans, strict=True):  # as the run goes
+        recorder.log_frame(stamp_s, pose, scan)
+    recorder.log_alignment(np.array([1.0, 2.0, 0.5]))
     recorder.log_ground_truth(GroundTruthMap(0.0, cells, spec), stamps, poses)
-    recorder.log_trajectory("radar", stamps, poses, scans, Extrinsics())
+    recorder.log_trajectory("radar", stamps, poses)
     recorder.log_map("radar_sparse", cells, spec)
     recorder.close()
     with warnings.catch_warnings():
@@ -41,11 +45,12 @@ def test_a_run_recording_reads_back_with_every_entity(tmp_path):
         "/world/ground_truth/path",
         "/world/estimate/radar",
         "/world/maps/radar_sparse",
-        "/world/rig/radar",
+        "/world/map",
+        "/world/map/rig/radar",
     ):
         assert entity in rows, entity
-    assert rows["/world/rig"] == 5  # one pose per frame on the sensor_time timeline
-    assert rows["/world/rig/radar/points"] == 5
+    assert rows["/world/map/rig"] == 5  # one pose per frame on the sensor_time timeline
+    assert rows["/world/map/rig/radar/points"] == 5
 
 
 def test_no_path_means_the_null_recorder():

@@ -8,32 +8,27 @@ import json
 import numpy as np
 import pytest
 
+from smokyslam.backends.camera_factors import CameraFactorMaker
 from smokyslam.backends.camera_gate import get_camera_gate
+from smokyslam.backends.keyframes import KeyframeGate, Keyframer
 from smokyslam.backends.scale import get_scale_estimator
 from smokyslam.config import SmokySlamConfig, load_config
-from smokyslam.frontends.camera.odometry import (
-    CameraHealth,
-    CameraOdometryResult,
-    TrackingStatus,
-)
 from smokyslam.frontends.camera.pose import camera_from_planar, planar_from_camera
 from smokyslam.frontends.camera.preprocess import ImageQuality
+from smokyslam.frontends.camera.result import CameraHealth, CameraOdometryResult, TrackingStatus
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.geometry import (
     se2_between,
     se2_compose,
+    se2_compose_with_covariance,
+    se2_conjugate,
     se2_exp,
     se2_inverse,
     se2_log,
-    se3_from_se2,
+    transform_points_2d,
 )
-from smokyslam.pipelines.camera_factors import CameraFactorMaker
-from smokyslam.pipelines.keyframes import RadarKeyframer, compose_with_covariance, conjugate
-from smokyslam.pipelines.odometry import evaluate_run
-from smokyslam.pipelines.run import run_log
-from smokyslam.pipelines.slam import run_fused_slam
-from smokyslam.smoke import SmokedLog
-from smokyslam.types import CameraFrame, Odometry, OdometryHealth, RadarScan
+from smokyslam.pipelines.run import evaluate_source, run_log, run_source
+from smokyslam.types import CameraFrame, Odometry, OdometryHealth
 
 MOUNT_RADAR = np.array([0.1, 0.0, 0.0])
 
@@ -49,7 +44,7 @@ def test_composed_step_covariance_matches_sampling():
     a, b = np.array([0.3, 0.1, 0.4]), np.array([0.2, -0.05, -0.3])
     cov_a = np.diag([0.02, 0.01, 0.03]) ** 2
     cov_b = np.array([[4e-4, 1e-4, 0.0], [1e-4, 2e-4, 5e-5], [0.0, 5e-5, 9e-4]])
-    delta, covariance = compose_with_covariance(a, cov_a, b, cov_b)
+    delta, covariance = se2_compose_with_covariance(a, cov_a, b, cov_b)
     n = 100_000
     a_samples = se2_compose(a, se2_exp(rng.multivariate_normal(np.zeros(3), cov_a, n)))
     b_samples = se2_compose(b, se2_exp(rng.multivariate_normal(np.zeros(3), cov_b, n)))
@@ -64,7 +59,7 @@ def test_conjugate_moves_a_radar_step_and_its_covariance_to_base_link():
     radar_a, radar_b = np.array([1.0, 2.0, 0.5]), np.array([1.3, 2.1, 0.8])
     step = se2_between(radar_a, radar_b)
     cov = np.diag([0.01, 0.02, 0.01]) ** 2
-    delta, covariance = conjugate(step, cov, mount)
+    delta, covariance = se2_conjugate(step, cov, mount)
     base_a, base_b = (
         se2_compose(radar_a, se2_inverse(mount)),
         se2_compose(radar_b, se2_inverse(mount)),
@@ -81,16 +76,15 @@ def _odometry(stamp_s: float, pose: np.ndarray, delta: np.ndarray, sigma: float)
     return Odometry(stamp_s, pose, delta, np.eye(3) * sigma**2, health)
 
 
-def _scan(stamp_s: float) -> RadarScan:
-    points = np.array([[2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [3.0, -1.0, 0.0]])
-    return RadarScan(stamp_s, points, np.zeros(3), np.zeros(3))
+SCAN_XY = np.array([[2.0, 0.0], [2.0, 1.0], [3.0, -1.0]])
+"""A radar frame's points, radar frame."""
 
 
 def test_keyframer_gate_steps_and_frame_offsets_rebuild_the_trajectory():
     # The radar walks 0.06 m a frame while turning 0.02 rad: a keyframe every 4th frame
     # (>= 0.2 m), with base_link 0.1 m behind the radar.
-    T_base_radar = se3_from_se2(MOUNT_RADAR)
-    keyframer = RadarKeyframer(T_base_radar, translation_m=0.2, rotation_rad=np.pi / 8)
+    keyframer = Keyframer(KeyframeGate(0.2, np.pi / 8), MOUNT_RADAR, submap_frames=12)
+    points_base = transform_points_2d(MOUNT_RADAR, SCAN_XY)
     step = np.array([0.06, 0.0, 0.02])
     pose, keyframes = np.zeros(3), []
     truth = []
@@ -98,7 +92,7 @@ def test_keyframer_gate_steps_and_frame_offsets_rebuild_the_trajectory():
         delta = step if i else np.zeros(3)
         pose = se2_compose(pose, delta)
         truth.append(se2_compose(pose, se2_inverse(MOUNT_RADAR)))
-        keyframe = keyframer.add(_odometry(0.1 * i, pose, delta, 0.01), _scan(0.1 * i))
+        keyframe = keyframer.add(_odometry(0.1 * i, pose, delta, 0.01), points_base)
         if keyframe is not None:
             keyframes.append(keyframe)
     assert [k.index for k in keyframes] == list(range(6))
@@ -114,8 +108,8 @@ def test_keyframer_gate_steps_and_frame_offsets_rebuild_the_trajectory():
     )
     np.testing.assert_allclose(rebuilt, np.array(truth), atol=1e-12)
     # Submap: the recent frames' points in the latest base_link; the newest one lies as seen.
-    submap = keyframer.submap()
-    np.testing.assert_allclose(submap[-3:], _scan(0).points_xyz_m[:, :2] + MOUNT_RADAR[:2])
+    submap = keyframer.submap(voxel_m=0.0)
+    np.testing.assert_allclose(submap[-3:], SCAN_XY + MOUNT_RADAR[:2])
 
 
 def _camera_result(stamp_s: float, pose: np.ndarray, noise: float = 0.0, map_id: int = 0):
@@ -149,6 +143,7 @@ def _camera_scene(noise: float = 0.0, yaw_jump_at_s: float | None = None):
         T_base_camera,
         get_camera_gate(config.backend.camera_gate),
         get_scale_estimator(config.backend.scale),
+        covariance_scale=1.0,
         consistency_chi2=11.34,
     )
 
@@ -230,7 +225,8 @@ def test_fused_is_not_worse_than_radar_alone_on_a_clean_log(runs):
 
 
 class _BlindCamera:
-    """A log reader whose images are black between ``start_s`` and ``end_s``."""
+    """A log reader whose images are black between ``start_s`` and ``end_s`` (the log's own
+    stamps, from its start)."""
 
     def __init__(self, reader, start_s: float, end_s: float) -> None:
         self._reader, self._start_s, self._end_s = reader, start_s, end_s
@@ -247,8 +243,8 @@ class _BlindCamera:
 
 def test_camera_factors_disappear_while_the_camera_is_blind(office_log, runs):
     config = load_config()
-    reader = _BlindCamera(SmokedLog(open_log(office_log, config), config.smoke), 10.0, 20.0)
-    run = run_fused_slam(reader, config)
+    reader = _BlindCamera(open_log(office_log, config), 10.0, 20.0)
+    run = run_source(reader, "fused", config)
     stamps = run.keyframe_stamps_s
     blind = (stamps >= 10.0) & (stamps < 20.0)
     assert blind.sum() >= 15 and not run.keyframe_camera[blind].any()
@@ -258,5 +254,7 @@ def test_camera_factors_disappear_while_the_camera_is_blind(office_log, runs):
     assert not run.lost.any()
     steps = np.linalg.norm(np.diff(run.poses_world_base[:, :2], axis=0), axis=1)
     assert steps.max() < 0.2  # the trajectory goes on through the blind segment
-    blind_ate = evaluate_run(run).ate_rmse_m
+    blind_ate = evaluate_source(
+        run, reader.ground_truth_trajectory(), "fused"
+    ).trajectory.ate_rmse_m
     assert blind_ate <= 1.1 * runs["radar"].metrics["trajectory"]["ate_rmse_m"] + 0.02

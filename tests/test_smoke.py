@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from smokyslam.config import SmokeConfig
-from smokyslam.smoke import SmokedLog, SmokeEmulator, split_smoke
-from smokyslam.types import CameraFrame, GroundTruthPose, ImuSample, RadarScan
+from smokyslam.config import SmokeConfig, load_config
+from smokyslam.errors import ConfigError
+from smokyslam.smoke import SmokeEmulator, SmokeLevel, parse_smoke
+from smokyslam.types import CameraFrame, ImuSample, RadarScan
 
 
 def _scan(n: int, stamp_s: float = 1.0) -> RadarScan:
@@ -97,8 +98,7 @@ def test_haze_then_noise() -> None:
 def test_other_frames_and_clean_config_pass_through() -> None:
     emulator = SmokeEmulator(SmokeConfig(radar_loss=0.9, camera_noise=0.5, haze=1.0))
     imu = ImuSample(0.0, np.zeros(3), np.zeros(3))
-    pose = GroundTruthPose(0.0, np.zeros(3))
-    assert emulator.apply(imu) is imu and emulator.apply(pose) is pose
+    assert emulator.apply(imu) is imu
     clean = SmokeEmulator(SmokeConfig())
     frame, scan = _grey(77), _scan(10)
     np.testing.assert_array_equal(clean.apply(frame).image, frame.image)
@@ -124,30 +124,40 @@ def test_smoke_levels_are_nested_so_more_smoke_degrades_the_same_log_further():
     assert np.all(noisy[1][noisy[0]])
 
 
-class _ListReader:
-    path = "list"
+@pytest.mark.parametrize(
+    ("text", "values", "label"),
+    [
+        ("0:0", (0.0, 0.0, 0.0), "r0-c0"),
+        ("0.1:0.2", (0.1, 0.2, 0.0), "r0.1-c0.2"),
+        (" 0.1:0.2:0.5 ", (0.1, 0.2, 0.5), "r0.1-c0.2-h0.5"),
+        ("0.2:0.40:0", (0.2, 0.4, 0.0), "r0.2-c0.40"),  # haze 0 is haze-free
+    ],
+)
+def test_smoke_notation_keeps_the_numbers_as_typed(text, values, label) -> None:
+    level = parse_smoke(text)
+    assert (level.radar_loss, level.camera_noise, level.haze) == values
+    assert level.label == label
+    assert parse_smoke(level.notation) == level
+    smoke = level.apply(load_config(None, {"smoke": {"airlight": 150.0, "seed": 4}})).smoke
+    assert (smoke.radar_loss, smoke.camera_noise, smoke.haze) == values
+    assert (smoke.airlight, smoke.seed) == (150.0, 4)
+    assert SmokeLevel.from_values(*values) == parse_smoke(
+        f"{values[0]:g}:{values[1]:g}:{values[2]:g}"
+    )
 
-    def __init__(self, frames: list) -> None:
-        self._frames = frames
 
-    def frames(self):
-        return iter(self._frames)
-
-
-def test_split_smoke_gives_the_same_frames_as_the_smoked_log() -> None:
-    frames = [_scan(40, 0.1), _grey(128, 0.15, np.full((240, 320), 3.0, np.float32))]
-    config = SmokeConfig(radar_loss=0.3, camera_noise=0.2, haze=0.4)
-    smoked = SmokedLog(_ListReader(frames), config)
-    clean, emulator = split_smoke(smoked)
-    assert list(clean.frames()) == frames and emulator.needs_depth
-    for expected, frame in zip(smoked.frames(), clean.frames(), strict=True):
-        again = emulator.apply(frame)
-        assert type(again) is type(expected) and again.stamp_s == expected.stamp_s
-        if isinstance(again, RadarScan):
-            assert len(again) == len(expected) == 28
-            np.testing.assert_array_equal(again.points_xyz_m, expected.points_xyz_m)
-        else:
-            np.testing.assert_array_equal(again.image, expected.image)
-            assert (again.image == 255).sum() + (again.image == 0).sum() >= 0.2 * 240 * 320
-    plain = _ListReader(frames)
-    assert split_smoke(plain) == (plain, None)
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("0.1", "radar_loss:camera_noise\\[:haze\\]"),
+        ("0:0:0:0", "radar_loss:camera_noise"),
+        ("a:0", "radar_loss in 'a:0' is not a number"),
+        ("0:1.5", "camera_noise in '0:1.5' must be between 0 and 1"),
+        ("0:0:-1", "haze in '0:0:-1' must be 0 or more"),
+        ("nan:0", "must be between 0 and 1"),
+        ("1e-1:0", "plain decimal"),
+    ],
+)
+def test_bad_smoke_notation_is_one_config_error(text, message) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_smoke(text)

@@ -4,13 +4,9 @@ Public API: :class:`CameraOdometry` (``track(frame) -> CameraOdometryResult``) a
 :class:`Preprocessor` (``apply(image) -> (clean_image, ImageQuality)``).
 """
 
-from smokyslam.frontends.camera.odometry import (
-    CameraHealth,
-    CameraOdometry,
-    CameraOdometryResult,
-    TrackingStatus,
-)
+from smokyslam.frontends.camera.odometry import CameraOdometry
 from smokyslam.frontends.camera.preprocess import ImageQuality, Preprocessor
+from smokyslam.frontends.camera.result import CameraHealth, CameraOdometryResult, TrackingStatus
 
 __all__ = [
     "CameraHealth",

@@ -8,15 +8,15 @@ detected. A map starts from two views (essential matrix), and starts again, with
 scale, after tracking is lost.
 
 Scale: the odometry is up to scale. The first map's first baseline is 1 unit; a map restarted
-after a loss guesses its baseline from the speed before the loss. ``reinitializations``
-counts the maps started after the first, so a consumer knows where the scale may jump.
+after a loss guesses its baseline from the speed before the loss, and the floor's depth below
+the camera holds every map to the first map's units (``floor_scale.py``). Given the camera's
+height above the floor, that depth also gives metres: ``metres_per_unit`` of each result.
+``reinitializations`` counts the maps started after the first.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
-from enum import Enum
 
 import cv2
 import numpy as np
@@ -32,91 +32,36 @@ from smokyslam.frontends.camera.pose import (
     planar_from_camera,
     solve_pnp,
 )
-from smokyslam.frontends.camera.preprocess import ImageQuality, Preprocessor
+from smokyslam.frontends.camera.preprocess import Preprocessor
+from smokyslam.frontends.camera.result import (
+    LOST_VARIANCE,
+    CameraHealth,
+    CameraOdometryResult,
+    TrackingStatus,
+)
 from smokyslam.frontends.camera.tracker import LKTracker
 from smokyslam.geometry import se2_between, se2_compose
 from smokyslam.types import CameraFrame, CameraIntrinsics
 
 log = logging.getLogger(__name__)
 
-LOST_VARIANCE = 1e6
-"""Variance (units^2, rad^2) reported on every axis of a frame without a pose estimate."""
-
 MAX_EXTRAPOLATION_S = 1.0
 """While lost, the pose coasts at the last velocity this long, then holds still."""
-
-
-class TrackingStatus(Enum):
-    """``tracking``: pose from PnP. ``initializing``: waiting for the first two-view start.
-    ``lost``: tracking failed; the pose is extrapolated until a new map starts."""
-
-    TRACKING = "tracking"
-    INITIALIZING = "initializing"
-    LOST = "lost"
-
-
-@dataclass(frozen=True)
-class CameraHealth:
-    """How well one frame was tracked.
-
-    tracked: points followed into this frame. landmarks: of them, with a landmark.
-    inliers: PnP inliers; inlier_ratio = inliers / landmarks.
-    parallax_deg: median ray angle of the inlier landmarks since the reference keyframe.
-    residual_rms_px: RMS reprojection error of the inliers.
-    """
-
-    tracked: int = 0
-    landmarks: int = 0
-    inliers: int = 0
-    inlier_ratio: float = 0.0
-    parallax_deg: float = 0.0
-    residual_rms_px: float = float("nan")
-
-
-@dataclass
-class CameraOdometryResult:
-    """The odometry's output for one frame (lengths in odometry units: up to scale).
-
-    pose_world_camera: (3,) [x, y, yaw_rad] of the camera body (x forward, y left) in the
-        odometry world: the first camera's body frame.
-    T_world_camera: (4, 4) the same pose in optical axes (z forward, x right, y down).
-    keyframe_id: the keyframe ``relative_pose`` is measured from.
-    relative_pose: (3,) [x, y, yaw_rad] of this frame in the body frame of that keyframe
-        (as adjusted by this frame's bundle adjustment, if any).
-    covariance: (3, 3) of ``relative_pose`` given the landmarks, from the reprojection
-        Jacobian and residuals; ``LOST_VARIANCE`` on the diagonal when lost.
-    is_keyframe: this frame became keyframe ``keyframe_id + 1``.
-    reinitialized: a new map (and a new scale) started at this frame.
-    reinitializations: maps started after the first, so far.
-    landmarks_world: (M, 3) world points of this frame's inlier landmarks.
-    """
-
-    stamp_s: float
-    status: TrackingStatus
-    pose_world_camera: np.ndarray
-    T_world_camera: np.ndarray
-    keyframe_id: int
-    relative_pose: np.ndarray
-    covariance: np.ndarray
-    health: CameraHealth
-    quality: ImageQuality
-    is_keyframe: bool
-    reinitialized: bool
-    reinitializations: int
-    landmarks_world: np.ndarray
-    metric_scale: bool = False
-
-    @property
-    def lost(self) -> bool:
-        """True when the pose is not measured from the image (initializing or lost)."""
-        return self.status is not TrackingStatus.TRACKING
 
 
 class CameraOdometry:
     """Tracks a mono camera through a stream of frames; one verb, :meth:`track`."""
 
-    def __init__(self, intrinsics: CameraIntrinsics, config: CameraOdometryConfig) -> None:
+    def __init__(
+        self,
+        intrinsics: CameraIntrinsics,
+        config: CameraOdometryConfig,
+        camera_height_m: float | None,
+    ) -> None:
+        """``camera_height_m``: the optical centre's height above the floor (the rig's
+        ``T_base_camera``), for metric scale; None when unknown."""
         self.intrinsics = intrinsics
+        self.camera_height_m = camera_height_m
         self.config = config
         self.K = intrinsics.camera_matrix
         self._preprocessor = Preprocessor(config)
@@ -204,7 +149,17 @@ class CameraOdometry:
             reinitialized=reinitialized,
             reinitializations=self._reinitializations,
             landmarks_world=landmarks,
+            metres_per_unit=self.metres_per_unit,
         )
+
+    @property
+    def metres_per_unit(self) -> float | None:
+        """Metres per odometry unit: the camera height over the first map's floor depth
+        below the camera (None until the floor is found, or without a height)."""
+        reference = self._floor.reference_height
+        if self.camera_height_m is None or reference is None:
+            return None
+        return self.camera_height_m / reference
 
     def landmarks_world(self) -> np.ndarray:
         """(N, 3) every landmark triangulated so far, in the odometry world (x forward, y left,

@@ -11,7 +11,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
-from smokyslam.types import CameraIntrinsics, Extrinsics, Frame, GroundTruthMap
+from smokyslam.types import (
+    CameraIntrinsics,
+    Extrinsics,
+    Frame,
+    GroundTruthMap,
+    GroundTruthTrajectory,
+)
 
 
 @dataclass
@@ -45,7 +51,12 @@ class LogReader(Protocol):
         ...
 
     def frames(self) -> Iterator[Frame]:
-        """Every radar/camera/IMU/ground-truth frame, in time order, each decoded once."""
+        """Every radar, camera and IMU frame, in time order, each decoded once. Never ground
+        truth: estimators read this and nothing else."""
+        ...
+
+    def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
+        """The ground-truth base_link poses (sorted by stamp), when the log has them."""
         ...
 
     def ground_truth_map(self) -> GroundTruthMap | None:

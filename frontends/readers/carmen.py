@@ -11,8 +11,9 @@ up to 78° between scans, far coarser than a 10 Hz radar.
 
 Per scan, in this order and at one stamp: an :class:`ImuSample` whose gyro z is the emulated
 yaw increment since the previous scan divided by the nominal interval (the rate held over that
-interval; none for the first scan), a :class:`RadarScan` (emulated radar points with Doppler, or
-every valid beam when emulation is off) and a :class:`GroundTruthPose`.
+interval; none for the first scan) and a :class:`RadarScan` (emulated radar points with
+Doppler, or every valid beam when emulation is off). The line's pose is the ground truth
+(``ground_truth_trajectory()``).
 
 Malformed ``FLASER`` lines are skipped, logged and counted in ``skipped_lines``. Other message
 types (``ODOM``, ``PARAM``, ``NEFF``...) are ignored, except ``PARAM robot_frontlaser_offset``,
@@ -45,7 +46,7 @@ from smokyslam.types import (
     Extrinsics,
     Frame,
     GroundTruthMap,
-    GroundTruthPose,
+    GroundTruthTrajectory,
     ImuSample,
     RadarScan,
 )
@@ -159,13 +160,13 @@ class CarmenReader:
         streams = [
             StreamSummary("FLASER", "carmen/FLASER as radar", count, rate),
             StreamSummary("gyro (emulated)", "ImuSample", max(count - 1, 0), rate),
-            StreamSummary("FLASER pose", "GroundTruthPose", count, rate),
+            StreamSummary("FLASER pose", "ground-truth pose", count, rate),
         ]
         return LogSummary(self.path, "carmen", (count - 1) * self.dt_s, 0.0, streams)
 
     def frames(self) -> Iterator[Frame]:
-        """Gyro sample, radar scan and ground-truth pose per ``FLASER`` line (same seed, same
-        frames on every call)."""
+        """Gyro sample and radar scan per ``FLASER`` line (same seed, same frames on every
+        call)."""
         config = self._config
         rng = np.random.default_rng(config.carmen.seed)
         poses_base = self._log.poses_world_base
@@ -184,7 +185,10 @@ class CarmenReader:
                 rng,
             )
             yield RadarScan(float(stamp_s), points, np.ones(len(points)), doppler)
-            yield GroundTruthPose(float(stamp_s), poses_base[i].copy())
+
+    def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
+        """The ``FLASER`` lines' poses at the scans' nominal stamps."""
+        return GroundTruthTrajectory(self.stamps_s, self._log.poses_world_base.copy())
 
     def ground_truth_map(self) -> GroundTruthMap | None:
         return None

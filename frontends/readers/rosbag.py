@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag1 import ReaderError as ReaderError1
 from rosbags.rosbag2 import ReaderError as ReaderError2
@@ -42,7 +43,14 @@ from smokyslam.rosmsg_decode import (
     intrinsics_from_camera_info,
     radar_scan_from_pointcloud2,
 )
-from smokyslam.types import CameraFrame, CameraIntrinsics, Extrinsics, Frame, GroundTruthMap
+from smokyslam.types import (
+    CameraFrame,
+    CameraIntrinsics,
+    Extrinsics,
+    Frame,
+    GroundTruthMap,
+    GroundTruthTrajectory,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -50,6 +58,9 @@ DEPTH_WAIT_S = 0.1
 """Log time an image waits for its depth image before it is released without depth."""
 DEPTH_MATCH_S = 0.001
 """Largest header-stamp difference between an image and the depth image paired with it."""
+
+SENSOR_STREAMS = ("radar", "camera_info", "camera_image", "camera_depth", "imu")
+"""The streams ``frames()`` reads: never ground truth."""
 
 _READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
 _NS = 1e-9
@@ -192,11 +203,24 @@ class RosbagReader:
             latest = (stamp_s, msg)
         return None if latest is None else ground_truth_map_from_msg(latest[1], latest[0])
 
+    def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
+        """Every ground-truth pose of the log, sorted by stamp (repeated stamps kept once),
+        or None when it has none."""
+        stamps, poses = [], []
+        for _, stamp_s, msg in self._messages("ground_truth_pose"):
+            pose = ground_truth_pose_from_msg(msg, stamp_s)
+            stamps.append(pose.stamp_s)
+            poses.append(pose.pose_world_base)
+        if not stamps:
+            return None
+        stamps_s, first = np.unique(np.asarray(stamps, dtype=float), return_index=True)
+        return GroundTruthTrajectory(stamps_s, np.asarray(poses, dtype=float)[first])
+
     def frames(self) -> Iterator[Frame]:
-        """Radar, camera (with intrinsics and paired depth), IMU and ground-truth frames."""
+        """Radar, camera (with intrinsics and paired depth) and IMU frames."""
         assembler = _FrameAssembler(self.camera_intrinsics(), "camera_depth" in self.stream_topics)
         dropped_before = self.dropped_points
-        streams = [s for s in STREAM_MSGTYPES if s != "tf_static"]
+        streams = [s for s in SENSOR_STREAMS if s in STREAM_MSGTYPES]
         for stream, stamp_s, msg in self._messages(*streams):
             try:
                 self._dispatch(assembler, stream, stamp_s, msg)
@@ -219,12 +243,8 @@ class RosbagReader:
             assembler.push_image(msg, stamp_s)
         elif stream == "camera_depth":
             assembler.push_depth(msg, stamp_s)
-        elif stream == "imu":
-            assembler.push(imu_from_msg(msg, stamp_s))
-        elif stream == "ground_truth_pose":
-            assembler.push(ground_truth_pose_from_msg(msg, stamp_s))
         else:
-            assembler.push(ground_truth_map_from_msg(msg, stamp_s))
+            assembler.push(imu_from_msg(msg, stamp_s))
 
 
 class _FrameAssembler:

@@ -15,14 +15,15 @@ from collections.abc import Callable
 
 import numpy as np
 
-from smokyslam.config import MappingConfig
+from smokyslam.backends.keyframes import get_keyframe_gate
+from smokyslam.config import KeyframeConfig, MappingConfig
 from smokyslam.evaluation.map_metrics import evaluate_map
 from smokyslam.geometry import transform_points_2d
 from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.raycast import naive_raycast, raycast
 from smokyslam.sim.raycast2d import cast_rays
 from smokyslam.sim.world import World, box_world
-from smokyslam.types import Extrinsics, Frame, GroundTruthPose, RadarScan
+from smokyslam.types import Extrinsics, GroundTruthTrajectory, RadarScan
 
 
 def first_hit_ranges(
@@ -61,17 +62,18 @@ def synthetic_radar_frames(
     range_sigma_m: float = 0.03,
     azimuth_sigma_rad: float = math.radians(3.0),
     seed: int = 0,
-) -> list[Frame]:
-    """Time-ordered GroundTruthPose and RadarScan frames of a sensor looping in ``world``.
+) -> tuple[list[RadarScan], GroundTruthTrajectory]:
+    """Time-ordered radar scans of a sensor looping in ``world``, and its ground truth.
 
     The radar is mounted at base_link (identity extrinsics). Each scan has up to
     ``points_per_scan`` returns at random azimuths, with Gaussian range and azimuth noise.
     """
     rng = np.random.default_rng(seed)
-    frames: list[Frame] = [
-        GroundTruthPose(float(t), loop_pose(world, float(t)))
-        for t in np.arange(0.0, duration_s + 1e-9, 1.0 / pose_rate_hz)
-    ]
+    truth_stamps = np.arange(0.0, duration_s + 1e-9, 1.0 / pose_rate_hz)
+    truth = GroundTruthTrajectory(
+        truth_stamps, np.array([loop_pose(world, float(t)) for t in truth_stamps])
+    )
+    frames: list[RadarScan] = []
     for t in np.arange(0.5 / rate_hz, duration_s, 1.0 / rate_hz):
         pose = loop_pose(world, float(t))
         azimuths = rng.uniform(-half_fov_rad, half_fov_rad, points_per_scan)
@@ -85,8 +87,7 @@ def synthetic_radar_frames(
         points = np.column_stack([xy, np.zeros(len(xy))])
         n = len(points)
         frames.append(RadarScan(float(t), points, np.full(n, 20.0), np.zeros(n)))
-    frames.sort(key=lambda frame: frame.stamp_s)
-    return frames
+    return frames, truth
 
 
 def _best_of(repeats: int, function: Callable[[], object]) -> float:
@@ -107,12 +108,11 @@ def raycast_speedup_vs_naive(repeats: int = 3, seed: int = 0) -> dict[str, float
     Best of ``repeats`` runs each, the two casters interleaved so machine load hits both.
     """
     world = box_world(12.0, 9.0)
-    frames = synthetic_radar_frames(world, seed=seed)
-    poses = {f.stamp_s: f.pose_world_base for f in frames if isinstance(f, GroundTruthPose)}
-    stamps = np.array(sorted(poses))
+    scans, truth = synthetic_radar_frames(world, seed=seed)
+    stamps = truth.stamps_s
     origins, ends = [], []
-    for scan in (f for f in frames if isinstance(f, RadarScan)):
-        pose = poses[float(stamps[np.argmin(np.abs(stamps - scan.stamp_s))])]
+    for scan in scans:
+        pose = truth.poses_world_base[np.argmin(np.abs(stamps - scan.stamp_s))]
         cells = np.floor(transform_points_2d(pose, scan.points_xy_m) / 0.1).astype(np.int64)
         origins.append(np.broadcast_to(np.floor(pose[:2] / 0.1).astype(np.int64), cells.shape))
         ends.append(cells)
@@ -148,11 +148,15 @@ def map_realtime_factor(
     ``map_error_index``: the built map against the room's ground truth.
     """
     world = box_world(12.0, 9.0)
-    frames = synthetic_radar_frames(world, duration_s=duration_s, seed=seed)
-    config = MappingConfig()
-    build_s = _best_of(repeats, lambda: build_radar_map(frames, Extrinsics(), config))
+    scans, truth = synthetic_radar_frames(world, duration_s=duration_s, seed=seed)
+    config, gate = MappingConfig(), get_keyframe_gate(KeyframeConfig())
+
+    def build():
+        return build_radar_map(scans, truth, Extrinsics(), config, gate)
+
+    build_s = _best_of(repeats, build)
     tracemalloc.start()
-    grid = build_radar_map(frames, Extrinsics(), config)
+    grid = build()
     _, peak_bytes = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     metrics = evaluate_map(grid.to_cells(), grid.spec, world.ground_truth_cells(), world.spec)

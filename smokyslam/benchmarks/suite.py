@@ -71,6 +71,6 @@ def run_benchmarks(
         if source == "fused":
             results["pipeline_realtime_factor"] = run.metrics["realtime_factor"]
         else:
-            results[f"{source}_odometry_fps"] = run.run.frames_per_s
+            results[f"{source}_odometry_fps"] = run.estimate.frames_per_s
     results["peak_rss_mb"] = peak_rss_mb()
     return results

@@ -8,17 +8,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from smokyslam.errors import SmokySlamError
+from smokyslam.evaluation.compare_table import CompareRow
 from smokyslam.evaluation.trajectory_io import read_tum
-from smokyslam.evaluation.trajectory_metrics import Alignment, associate, umeyama_2d
 from smokyslam.types import GroundTruthMap
-
-if TYPE_CHECKING:
-    from smokyslam.pipelines.compare import CompareRow
 
 SOURCE_COLOURS = {
     "camera": "tab:blue",
@@ -44,25 +40,19 @@ def _unique(values: list[str]) -> list[str]:
     return list(dict.fromkeys(values))
 
 
-def aligned_trajectory(row: CompareRow) -> tuple[np.ndarray, np.ndarray | None]:
-    """The run's (N, 3) poses aligned onto its ground truth as its ATE was (SE(2), or Sim(2)
-    for camera-only), and the (M, 3) ground truth; unaligned and None without ground truth."""
-    stamps_s, poses = read_tum(row.run_dir / "trajectory.tum")
+def run_paths(row: CompareRow) -> tuple[np.ndarray, np.ndarray | None]:
+    """The run's (N, 3) path as written (in the ground-truth frame when the log has ground
+    truth, see ``evaluation/run_evaluation.py``) and the (M, 3) ground truth, or None."""
+    _, poses = read_tum(row.run_dir / "trajectory.tum")
     gt_path = row.run_dir / "ground_truth.tum"
-    if not gt_path.is_file() or len(poses) < 2:
-        return poses, None
-    gt_stamps_s, gt_poses = read_tum(gt_path)
-    inside, gt_at = associate(stamps_s, gt_stamps_s, gt_poses)
-    alignment = Alignment(row.metrics.get("trajectory", {}).get("ate_alignment", "se2"))
-    similarity = umeyama_2d(poses[inside, :2], gt_at[:, :2], alignment is Alignment.SIM2)
-    return similarity.apply(poses), gt_poses
+    return poses, read_tum(gt_path)[1] if gt_path.is_file() else None
 
 
 def plot_trajectories(
     path: Path | str, rows: list[CompareRow], gt_map: GroundTruthMap | None = None
 ) -> Path:
     """One panel per smoke level (a row of panels per haze value): the ground-truth map and
-    path, and every successful run's aligned base_link path, coloured by source. All panels
+    path, and every successful run's base_link path, coloured by source. All panels
     share the view: the paths' bounding box plus a margin, the map drawn underneath."""
     import matplotlib
 
@@ -111,11 +101,11 @@ def plot_trajectories(
 
 
 def _load(row: CompareRow) -> tuple[np.ndarray, np.ndarray | None] | str:
-    """The row's aligned path and ground truth, or why there is none."""
+    """The row's path and ground truth, or why there is none."""
     if not row.ok:
         return "failed"
     try:
-        return aligned_trajectory(row)
+        return run_paths(row)
     except SmokySlamError as exc:
         return str(exc)
 

@@ -25,6 +25,16 @@ from scipy.ndimage import binary_dilation
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN, trinary_from_probability
 from smokyslam.mapping.grid import resample_nearest
+from smokyslam.types import GroundTruthMap
+
+MAP_METRIC_KEYS = (
+    "error_index",
+    "occupied_precision",
+    "occupied_recall",
+    "occupied_f1",
+    "occupied_iou",
+)
+"""The five map metrics of the contract (``metrics.json`` ``maps.<name>``)."""
 
 _NEIGHBOURHOOD = np.ones((3, 3), dtype=bool)
 
@@ -89,3 +99,9 @@ def evaluate_map(
         squared_error = (truth_values - probability[known]) ** 2
         metrics["error_index_probability"] = _ratio(squared_error.sum(), squared_error.size)
     return metrics
+
+
+def map_scores(cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap) -> dict[str, float]:
+    """The contract's five map metrics of trinary cells over ``spec`` against a true map."""
+    scores = evaluate_map(cells, spec, truth.cells, truth.spec)
+    return {key: scores[key] for key in MAP_METRIC_KEYS}

@@ -33,19 +33,19 @@ class OccupancyGrid:
     resolution_m: cell side. log_odds_hit / log_odds_miss: added per update to hit / passed
     cells. log_odds_min / log_odds_max: clamp. occupied_thresh / free_thresh: probabilities
     used by :meth:`to_cells`. grow_margin_cells: the least extra border added when growing.
-    With the defaults one hit makes a cell occupied (p = 0.70) and two passes make it free
-    (p = 0.18): sparse radar rarely crosses a cell more often than that.
+    With the config's defaults one hit makes a cell occupied (p = 0.70) and two passes make it
+    free (p = 0.18): sparse radar rarely crosses a cell more often than that.
     """
 
     def __init__(
         self,
-        resolution_m: float = 0.1,
-        log_odds_hit: float = 0.85,
-        log_odds_miss: float = -0.75,
-        log_odds_min: float = -2.0,
-        log_odds_max: float = 3.5,
-        occupied_thresh: float = 0.65,
-        free_thresh: float = 0.196,
+        resolution_m: float,
+        log_odds_hit: float,
+        log_odds_miss: float,
+        log_odds_min: float,
+        log_odds_max: float,
+        occupied_thresh: float,
+        free_thresh: float,
         grow_margin_cells: int = 64,
     ) -> None:
         self.resolution_m = float(resolution_m)
@@ -58,6 +58,13 @@ class OccupancyGrid:
         self.grow_margin_cells = int(grow_margin_cells)
         self._log_odds = np.zeros((0, 0), dtype=np.float32)
         self._offset_ixy = np.zeros(2, dtype=np.int64)  # world cell of array element [0, 0]
+
+    def copy(self) -> OccupancyGrid:
+        """An independent copy (same parameters and cells): a snapshot that later updates of
+        this grid leave alone."""
+        twin = self.empty_like()
+        twin._log_odds, twin._offset_ixy = self._log_odds.copy(), self._offset_ixy.copy()
+        return twin
 
     def empty_like(self) -> OccupancyGrid:
         """A new, empty grid with the same parameters."""

@@ -1,6 +1,6 @@
 """Radar occupancy mapping: one frame's local grid, and the global grid stitched from keyframes.
 
-Two ways to put a frame into the global grid (``MappingConfig.stitch_method``):
+Two ways to put a keyframe into the global grid (``MappingConfig.stitch_method``):
 
 - ``raycast`` (default): the scan's rays are cast straight in the world frame.
 - ``paper``: the frame's local grid (the paper's Fig. 6, radar at its centre) is rotated about
@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from smokyslam.config import MappingConfig
-from smokyslam.geometry import GridSpec, transform_points_2d, wrap_angle
+from smokyslam.geometry import GridSpec, transform_points_2d
 from smokyslam.mapping.grid import OccupancyGrid, get_occupancy_grid
 from smokyslam.mapping.raycast import raycast
 from smokyslam.types import RadarScan
@@ -83,76 +82,43 @@ def radar_local_grid(
 
 
 class RadarGridMapper:
-    """Global radar grid built from keyframes; one verb per frame: :meth:`insert`.
+    """Global radar grid stitched from keyframe scans; one verb: :meth:`insert`.
 
-    A frame becomes a keyframe when the radar has moved ``keyframe_translation_m`` in world x
-    or y, or turned ``keyframe_rotation_rad``, since the last keyframe (the first frame with
-    points always is). Keyframe scans and poses are kept for :meth:`rebuild`.
+    Which frames are keyframes is not decided here: the pose graph's keyframe gate decides
+    (``backends/keyframes.py``), for online maps and for maps built after a run alike.
     """
 
     def __init__(
         self,
         grid: OccupancyGrid,
-        stitch_method: str = "raycast",
-        keyframe_translation_m: float = 0.2,
-        keyframe_rotation_rad: float = math.pi / 8,
-        max_range_m: float = 10.0,
-        local_grid_size_m: float = 20.0,
+        stitch_method: str,
+        max_range_m: float,
+        local_grid_size_m: float,
     ) -> None:
         if stitch_method not in ("raycast", "paper"):
             raise ValueError(f"unknown stitch method {stitch_method!r}")
         self.grid = grid
         self.stitch_method = stitch_method
-        self.keyframe_translation_m = keyframe_translation_m
-        self.keyframe_rotation_rad = keyframe_rotation_rad
         self.max_range_m = max_range_m
         self.local_grid_size_m = local_grid_size_m
-        self.keyframe_scans: list[RadarScan] = []
-        self.keyframe_poses: list[np.ndarray] = []
 
     def insert(self, scan: RadarScan, pose_world_radar: np.ndarray) -> bool:
-        """Stitch ``scan`` (points in the radar frame) at ``pose_world_radar`` [x_m, y_m, yaw_rad]
-        if it is a keyframe; returns whether it was inserted. Scans without points are not.
-        """
-        pose = np.asarray(pose_world_radar, dtype=float)
-        if len(scan) == 0 or not self._is_keyframe(pose):
+        """Stitch ``scan`` (points in the levelled radar frame) at ``pose_world_radar``
+        [x_m, y_m, yaw_rad]; returns whether it had points to stitch."""
+        if len(scan) == 0:
             return False
-        self._stitch(scan, pose)
-        self.keyframe_scans.append(scan)
-        self.keyframe_poses.append(pose)
-        return True
-
-    def rebuild(
-        self, scans: Sequence[RadarScan], poses_world_radar: Sequence[np.ndarray]
-    ) -> OccupancyGrid:
-        """Start an empty grid and stitch every given scan at its (e.g. re-optimized) pose.
-
-        No keyframe gate: the caller passes the frames to keep (usually ``keyframe_scans``).
-        """
-        self.grid = self.grid.empty_like()
-        self.keyframe_scans, self.keyframe_poses = [], []
-        for scan, pose in zip(scans, poses_world_radar, strict=True):
-            pose = np.asarray(pose, dtype=float)
-            self._stitch(scan, pose)
-            self.keyframe_scans.append(scan)
-            self.keyframe_poses.append(pose)
-        return self.grid
-
-    def _is_keyframe(self, pose: np.ndarray) -> bool:
-        if not self.keyframe_poses:
-            return True
-        last = self.keyframe_poses[-1]
-        moved = np.abs(pose[:2] - last[:2]).max() >= self.keyframe_translation_m
-        turned = abs(wrap_angle(pose[2] - last[2])) >= self.keyframe_rotation_rad
-        return bool(moved or turned)
-
-    def _stitch(self, scan: RadarScan, pose: np.ndarray) -> None:
+        pose = np.asarray(pose_world_radar, dtype=float)
         if self.stitch_method == "paper":
             self._stitch_rotated_local_grid(scan, pose)
-            return
-        points, beyond = scan_rays(scan, self.max_range_m)
-        ends = self.grid.cells_of(transform_points_2d(pose, points))
-        self.grid.insert_rays(self.grid.cells_of(pose[:2])[0], ends, beyond)
+        else:
+            points, beyond = scan_rays(scan, self.max_range_m)
+            ends = self.grid.cells_of(transform_points_2d(pose, points))
+            self.grid.insert_rays(self.grid.cells_of(pose[:2])[0], ends, beyond)
+        return True
+
+    def restart(self) -> None:
+        """Start again from an empty grid (same settings), e.g. to re-render on new poses."""
+        self.grid = self.grid.empty_like()
 
     def _stitch_rotated_local_grid(self, scan: RadarScan, pose: np.ndarray) -> None:
         local = radar_local_grid(
@@ -172,8 +138,6 @@ def get_radar_mapper(config: MappingConfig) -> RadarGridMapper:
     return RadarGridMapper(
         get_occupancy_grid(config),
         stitch_method=config.stitch_method,
-        keyframe_translation_m=config.keyframe_translation_m,
-        keyframe_rotation_rad=config.keyframe_rotation_rad,
         max_range_m=config.max_range_m,
         local_grid_size_m=config.local_grid_size_m,
     )

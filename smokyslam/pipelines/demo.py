@@ -7,13 +7,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig
+from smokyslam.outputs import claim_folder
 from smokyslam.pipelines.run import SOURCES, RunResult, run_log
 from smokyslam.pipelines.truth_mapping import run_truth_mapping
 from smokyslam.sim.simulate import SimulationResult, simulate
+from smokyslam.smoke import SmokeLevel, parse_smoke
 
 DEMO_WORLD, DEMO_SEED = "office", 7
-DEMO_SMOKE = {"radar_loss": 0.1, "camera_noise": 0.2}  # the paper's middle smoke level
+DEMO_SMOKE = parse_smoke("0.1:0.2")  # the paper's middle smoke level
 DEMO_SOURCES = ("fused", "radar", "camera", "dead-reckoning")
+DEMO_LOG = f"{DEMO_WORLD}.mcap"
+DEMO_OUTPUTS = (DEMO_LOG, "map_ground_truth", *(f"run-{source}" for source in DEMO_SOURCES))
 
 
 @dataclass
@@ -28,19 +32,25 @@ def run_demo(
     config: SmokySlamConfig,
     duration_s: float = 60.0,
     on_step: Callable[[str], None] | None = None,
+    smoke: SmokeLevel = DEMO_SMOKE,
+    overwrite: bool = False,
 ) -> DemoResult:
-    """Simulate, map on ground truth, then run every available source under smoke."""
+    """Simulate, map on ground truth, then run every available source under ``smoke``.
+
+    A folder holding an earlier demo is refused unless ``overwrite``, which replaces it.
+    """
     step = on_step or (lambda _message: None)
     out_dir = Path(out_dir)
+    claim_folder(out_dir, overwrite, DEMO_OUTPUTS)
     out_dir.mkdir(parents=True, exist_ok=True)
-    log_path = out_dir / f"{DEMO_WORLD}.mcap"
+    log_path = out_dir / DEMO_LOG
     step(f"simulating {duration_s:.0f} s of a smoky {DEMO_WORLD} -> {log_path}")
     simulation = simulate(DEMO_WORLD, duration_s, DEMO_SEED, log_path, config, overwrite=True)
-    smoky = config.model_copy(update={"smoke": config.smoke.model_copy(update=DEMO_SMOKE)})
+    smoky = smoke.apply(config)
     step("radar map on ground-truth poses")
     mapping = run_truth_mapping(log_path, smoky, out_dir / "map_ground_truth")
     runs = []
     for source in (s for s in DEMO_SOURCES if s in SOURCES):
-        step(f"{source} run under smoke {DEMO_SMOKE}")
+        step(f"{source} run under smoke {smoke.notation}")
         runs.append(run_log(log_path, source, smoky, out_dir / f"run-{source}"))
     return DemoResult(simulation, mapping.out_dir, runs)

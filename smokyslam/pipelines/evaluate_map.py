@@ -6,9 +6,9 @@ from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import LogError
+from smokyslam.evaluation.map_metrics import map_scores
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.mapio import load_map
-from smokyslam.pipelines.truth_mapping import map_metrics
 from smokyslam.types import GroundTruthMap
 
 
@@ -29,4 +29,4 @@ def evaluate_map_file(
 ) -> dict[str, float]:
     """The five map metrics of ``map_yaml`` against the truth at ``truth_path``."""
     estimate = load_map(map_yaml)
-    return map_metrics(estimate.cells, estimate.spec, load_truth(truth_path, config))
+    return map_scores(estimate.cells, estimate.spec, load_truth(truth_path, config))

@@ -1,7 +1,7 @@
 """``smokyslam map --poses ground-truth``: the radar map built on ground-truth poses.
 
-This isolates the mapping half of the method from odometry: the same scans, the same stitching,
-perfect poses. Smoke emulation applies as in every run.
+This isolates the mapping half of the method from odometry: the same scans, the same smoke,
+the same keyframe gate and stitching, perfect poses.
 """
 
 from __future__ import annotations
@@ -11,27 +11,17 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
+from smokyslam.backends.keyframes import get_keyframe_gate
 from smokyslam.config import SmokySlamConfig
-from smokyslam.evaluation.map_metrics import evaluate_map
+from smokyslam.errors import LogError
+from smokyslam.evaluation.map_metrics import map_scores
 from smokyslam.frontends.readers.registry import open_log
-from smokyslam.geometry import GridSpec
 from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.grid import OccupancyGrid
 from smokyslam.outputs import OutputFolder
-from smokyslam.smoke import SmokedLog
-from smokyslam.types import GroundTruthMap
+from smokyslam.smoke import SmokeEmulator
 
 logger = logging.getLogger(__name__)
-
-MAP_METRIC_KEYS = (
-    "error_index",
-    "occupied_precision",
-    "occupied_recall",
-    "occupied_f1",
-    "occupied_iou",
-)
 
 
 @dataclass
@@ -42,28 +32,28 @@ class TruthMappingResult:
     out_dir: Path
 
 
-def map_metrics(cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap) -> dict[str, float]:
-    """The contract's five map metrics of trinary cells against a GroundTruthMap."""
-    scores = evaluate_map(cells, spec, truth.cells, truth.spec)
-    return {key: scores[key] for key in MAP_METRIC_KEYS}
-
-
 def run_truth_mapping(
-    log_path: Path | str, config: SmokySlamConfig, out_dir: Path | str
+    log_path: Path | str, config: SmokySlamConfig, out_dir: Path | str, overwrite: bool = False
 ) -> TruthMappingResult:
-    """Build ``maps/radar_sparse`` from the log's radar on its ground-truth poses; score it."""
+    """Build ``maps/radar_sparse`` from the log's (smoked) radar on its ground-truth poses;
+    score it against the log's true map."""
     started = time.perf_counter()
-    with OutputFolder(out_dir) as out:
+    with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
-        log = open_log(log_path, config, require=("radar", "ground_truth_pose"))
-        reader = SmokedLog(log, config.smoke)
-        grid = build_radar_map(reader.frames(), reader.extrinsics(), config.mapping)
+        reader = open_log(log_path, config, require=("radar", "ground_truth_pose"))
+        truth = reader.ground_truth_trajectory()
+        if truth is None or len(truth) < 2:
+            raise LogError(f"{log_path}: fewer than two ground-truth poses to map on")
+        smoke = SmokeEmulator(config.smoke)
+        frames = (smoke.apply(frame) for frame in reader.frames())
+        gate = get_keyframe_gate(config.keyframes)
+        grid = build_radar_map(frames, truth, reader.extrinsics(), config.mapping, gate)
         cells = grid.to_cells()
-        truth = reader.ground_truth_map()
-        out.write_map("radar_sparse", cells, grid.spec, truth)
+        gt_map = reader.ground_truth_map()
+        out.write_map("radar_sparse", cells, grid.spec, gt_map, truth.poses_world_base[:, :2])
         metrics = {}
-        if truth is not None:
-            metrics = {"maps": {"radar_sparse": map_metrics(cells, grid.spec, truth)}}
+        if gt_map is not None:
+            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map)}}
         else:
             logger.warning("%s has no ground-truth map: no map metrics", log_path)
         wall_s = time.perf_counter() - started

@@ -1,10 +1,12 @@
 """A run as a Rerun recording (``.rrd``), for inspecting trajectories in the Rerun viewer.
 
-Entity paths mirror the frame tree: ``world/rig`` moves with base_link, ``world/rig/radar``
-holds each radar frame's points in the radar frame under the (static) mounting transform;
-maps and ground truth are static entities under ``world/``. Time is ``sensor_time``, seconds
-from the log's start. :class:`NullRecorder` stands in when no recording is asked for, so
-callers never branch on "if visualize".
+Entity paths mirror the frame tree. ``world`` is the ground-truth frame (the estimate's own
+frame without ground truth); ``world/map`` is the run's map frame, placed in it by the run's
+alignment once the run is evaluated. ``world/map/rig`` moves with base_link as the run goes,
+``world/map/rig/radar`` holds each radar frame's levelled points under the (static) levelled
+mount. The final trajectory, maps and ground truth are static entities under ``world/``.
+Time is ``sensor_time``, seconds from the log's start. :class:`NullRecorder` stands in when no
+recording is asked for, so callers never branch on "if visualize".
 """
 
 from __future__ import annotations
@@ -14,28 +16,35 @@ from typing import Protocol
 
 import numpy as np
 
-from smokyslam.geometry import GridSpec, se3_from_se2
+from smokyslam.geometry import GridSpec, se2_from_matrix, se3_from_se2
 from smokyslam.mapio import OCCUPIED
 from smokyslam.types import Extrinsics, GroundTruthMap, RadarScan
 
 
 class Recorder(Protocol):
-    """What a run logs for visualization."""
+    """What a run logs for visualization: a stage of the run loop, then the results."""
+
+    def log_rig(self, extrinsics: Extrinsics) -> None:
+        """The sensor mounting, once, before the first frame."""
+
+    def log_frame(
+        self, stamp_s: float, pose_world_base: np.ndarray, radar_scan: RadarScan | None
+    ) -> None:
+        """One primary frame as the run processes it: the rig's current estimate (map frame)
+        and, for radar, the levelled scan."""
+
+    def log_alignment(self, T_world_map: np.ndarray) -> None:
+        """Where the run's map frame lies in the world (ground-truth) frame, (3,)."""
 
     def log_ground_truth(
         self, gt_map: GroundTruthMap | None, stamps_s: np.ndarray, poses: np.ndarray
     ) -> None: ...
 
-    def log_trajectory(
-        self,
-        source: str,
-        stamps_s: np.ndarray,
-        poses_world_base: np.ndarray,
-        scans: list[RadarScan],
-        extrinsics: Extrinsics,
-    ) -> None: ...
+    def log_trajectory(self, source: str, stamps_s: np.ndarray, poses_world_base: np.ndarray):
+        """The final trajectory, world frame."""
 
-    def log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None: ...
+    def log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None:
+        """A final map, world frame."""
 
     def close(self) -> None: ...
 
@@ -43,10 +52,19 @@ class Recorder(Protocol):
 class NullRecorder:
     """Records nothing."""
 
+    def log_rig(self, extrinsics) -> None:
+        pass
+
+    def log_frame(self, stamp_s, pose_world_base, radar_scan) -> None:
+        pass
+
+    def log_alignment(self, T_world_map) -> None:
+        pass
+
     def log_ground_truth(self, gt_map, stamps_s, poses) -> None:
         pass
 
-    def log_trajectory(self, source, stamps_s, poses_world_base, scans, extrinsics) -> None:
+    def log_trajectory(self, source, stamps_s, poses_world_base) -> None:
         pass
 
     def log_map(self, name, cells, spec) -> None:
@@ -61,6 +79,12 @@ def _occupied_points(cells: np.ndarray, spec: GridSpec) -> np.ndarray:
     iy, ix = np.nonzero(np.asarray(cells) == OCCUPIED)
     xy = spec.centres_of(np.column_stack([ix, iy]))
     return np.column_stack([xy, np.zeros(len(xy))])
+
+
+def level_mount(T_base_radar: np.ndarray) -> np.ndarray:
+    """(4, 4) the levelled radar frame on base_link: the radar's position, its heading only."""
+    T = se3_from_se2(se2_from_matrix(T_base_radar), float(np.asarray(T_base_radar)[2, 3]))
+    return T
 
 
 def _path_3d(poses: np.ndarray) -> np.ndarray:
@@ -99,37 +123,43 @@ class RerunRecorder:
                 static=True,
             )
 
-    def log_trajectory(
-        self,
-        source: str,
-        stamps_s: np.ndarray,
-        poses_world_base: np.ndarray,
-        scans: list[RadarScan],
-        extrinsics: Extrinsics,
-    ) -> None:
+    def log_rig(self, extrinsics: Extrinsics) -> None:
         rr = self._rr
+        T = level_mount(extrinsics.T_base_radar)
         self._rec.log(
-            f"world/estimate/{source}",
-            rr.LineStrips3D([_path_3d(poses_world_base)], colors=[40, 110, 220]),
+            "world/map/rig/radar",
+            rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]),
             static=True,
         )
-        T = extrinsics.T_base_radar
+
+    def log_frame(
+        self, stamp_s: float, pose_world_base: np.ndarray, radar_scan: RadarScan | None
+    ) -> None:
+        rr = self._rr
+        self._rec.set_time("sensor_time", duration=float(stamp_s))
+        T_world_base = se3_from_se2(pose_world_base)
         self._rec.log(
-            "world/rig/radar", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True
+            "world/map/rig",
+            rr.Transform3D(translation=T_world_base[:3, 3], mat3x3=T_world_base[:3, :3]),
         )
-        for index, (stamp_s, pose) in enumerate(zip(stamps_s, poses_world_base, strict=True)):
-            self._rec.set_time("sensor_time", duration=float(stamp_s))
-            T_world_base = se3_from_se2(pose)
+        if radar_scan is not None:
             self._rec.log(
-                "world/rig",
-                rr.Transform3D(translation=T_world_base[:3, 3], mat3x3=T_world_base[:3, :3]),
+                "world/map/rig/radar/points",
+                rr.Points3D(radar_scan.points_xyz_m, radii=0.04, colors=[250, 170, 30]),
             )
-            if index < len(scans):
-                scan = scans[index]
-                self._rec.log(
-                    "world/rig/radar/points",
-                    rr.Points3D(scan.points_xyz_m, radii=0.04, colors=[250, 170, 30]),
-                )
+
+    def log_alignment(self, T_world_map: np.ndarray) -> None:
+        T = se3_from_se2(T_world_map)
+        self._rec.log(
+            "world/map", self._rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True
+        )
+
+    def log_trajectory(self, source: str, stamps_s: np.ndarray, poses_world_base: np.ndarray):
+        self._rec.log(
+            f"world/estimate/{source}",
+            self._rr.LineStrips3D([_path_3d(poses_world_base)], colors=[40, 110, 220]),
+            static=True,
+        )
 
     def log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None:
         rr = self._rr

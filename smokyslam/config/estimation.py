@@ -1,165 +1,13 @@
-"""Configuration: one small pydantic model per stage, one root ``SmokySlamConfig``.
-
-Defaults live here and are mirrored in ``configs/default.yaml`` (a test keeps them equal).
-Unknown keys are errors, so a typo in a YAML file is reported rather than ignored.
-"""
+"""Config sections of the estimators: odometry, keyframes, mapping, the pose graph and SLAM."""
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field
 
-from smokyslam.errors import ConfigError
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
-
-
-class TopicsConfig(_Section):
-    """Log topics. Each stream lists candidate topics; the first one present in a log is used."""
-
-    radar: list[str] = ["/ti_mmwave/radar_scan_pcl"]
-    camera_image: list[str] = ["/camera/image_raw"]
-    camera_info: list[str] = ["/camera/camera_info"]
-    camera_depth: list[str] = ["/camera/depth/image_raw"]
-    imu: list[str] = ["/imu", "/sensor_platform/imu"]
-    ground_truth_pose: list[str] = ["/ground_truth/pose"]
-    ground_truth_map: list[str] = ["/ground_truth/map"]
-    tf_static: list[str] = ["/tf_static"]
-
-
-class SmokeConfig(_Section):
-    """Smoke emulated at replay time (seeded, so one log serves every level)."""
-
-    radar_loss: float = Field(0.0, ge=0.0, le=1.0, description="fraction of radar returns dropped")
-    camera_noise: float = Field(0.0, ge=0.0, le=1.0, description="salt-and-pepper pixel fraction")
-    haze: float = Field(0.0, ge=0.0, description="haze density B, 1/m")
-    airlight: float = Field(200.0, ge=0.0, le=255.0, description="haze airlight A, grey level")
-    default_depth_m: float = Field(3.0, gt=0.0, description="depth d for logs without depth")
-    seed: int = 0
-
-
-class RigConfig(_Section):
-    """Sensor mounting on base_link (x forward, y left, z up), metres and radians."""
-
-    radar_xy_m: tuple[float, float] = (0.10, 0.0)
-    radar_yaw_rad: float = 0.0
-    radar_height_m: float = 1.0
-    camera_xy_m: tuple[float, float] = (0.05, 0.0)
-    camera_yaw_rad: float = 0.0
-    camera_height_m: float = 1.2
-    calibration: str | None = Field(
-        None,
-        description="radar calibration YAML (l_b_r_*, q_b_r_*: radar on the IMU body); "
-        "replaces the log's /tf_static mounting",
-    )
-
-
-class RadarModelConfig(_Section):
-    """Simulated TI IWR1443 radar."""
-
-    rate_hz: float = 10.0
-    fov_deg: float = Field(60.0, gt=0.0, le=180.0, description="half field of view in azimuth")
-    min_range_m: float = 0.3
-    max_range_m: float = 10.0
-    beams: int = Field(241, ge=8, description="azimuth rays cast per frame before detection")
-    range_sigma_m: float = 0.03
-    azimuth_sigma_deg: float = 3.0
-    doppler_sigma_mps: float = 0.05
-    detection_max_prob: float = 0.9
-    detection_range_scale_m: float = 12.0
-    min_points: int = 10
-    max_points: int = 80
-    ghost_fraction: float = 0.04
-    clutter_fraction: float = 0.03
-    mean_points: float = Field(40.0, gt=0.0, description="mean points per frame (Poisson)")
-    incidence_exponent: float = Field(2.0, ge=0.0, description="detection falls as cos(inc)^k")
-    clutter_doppler_sigma_mps: float = 0.5
-
-
-class CameraModelConfig(_Section):
-    """Simulated mono camera."""
-
-    rate_hz: float = 15.0
-    width: int = 320
-    height: int = 240
-    fx: float = 220.0
-    fy: float = 220.0
-    pixel_noise_sigma: float = 2.0
-    supersample: int = Field(
-        1, ge=1, le=4, description="samples per pixel along each axis (anti-aliasing)"
-    )
-    depth_scale: int = Field(2, ge=1, description="depth is logged at 1/depth_scale resolution")
-
-
-class ImuModelConfig(_Section):
-    """Simulated IMU: gyro z and accel x/y with bias and white noise."""
-
-    rate_hz: float = 100.0
-    gyro_noise_radps: float = 0.002
-    gyro_bias_radps: float = 0.003
-    accel_noise_mps2: float = 0.05
-    accel_bias_mps2: float = 0.05
-
-
-class TrajectoryConfig(_Section):
-    """Walking path through the building."""
-
-    min_speed_mps: float = 0.3
-    max_speed_mps: float = 1.0
-    max_turn_rate_radps: float = math.radians(45.0)
-    clearance_m: float = 0.3
-    ground_truth_rate_hz: float = 50.0
-
-
-class SimulationConfig(_Section):
-    """Everything ``smokyslam simulate`` needs beyond the command-line arguments."""
-
-    wall_height_m: float = 2.5
-    resolution_m: float = 0.1
-    trajectory: TrajectoryConfig = TrajectoryConfig()
-    radar: RadarModelConfig = RadarModelConfig()
-    camera: CameraModelConfig = CameraModelConfig()
-    imu: ImuModelConfig = ImuModelConfig()
-
-
-class CarmenConfig(_Section):
-    """CARMEN laser logs replayed as a radar rig (seeded, so dead reckoning is a stable baseline).
-
-    Geometry noise (range, azimuth), field of view and range limits come from
-    ``simulation.radar``; the Doppler ego-velocity and gyro are built from the logged poses.
-    """
-
-    emulate_radar: bool = Field(True, description="False: every valid beam, noise-free")
-    nominal_rate_hz: float = Field(1.0, gt=0.0, description="scan i is stamped i / rate")
-    points_per_scan: int = Field(40, ge=3, description="valid beams kept per scan (random)")
-    dropout: float = Field(0.1, ge=0.0, lt=1.0, description="fraction of kept points dropped")
-    doppler_scale_error: float = Field(0.03, description="relative scale error of the velocity")
-    velocity_noise_rel: float = Field(0.05, ge=0.0, description="step noise sigma / step length")
-    velocity_noise_abs_m: float = Field(0.02, ge=0.0, description="step noise sigma floor, m")
-    doppler_point_sigma_mps: float = Field(0.02, ge=0.0, description="per-point Doppler noise")
-    gyro_noise_deg: float = Field(1.0, ge=0.0, description="yaw noise sigma per scan, degrees")
-    gyro_bias_deg: float = Field(0.05, description="yaw bias per scan, degrees")
-    seed: int = 0
-    map_radius_m: float = Field(
-        30.0,
-        gt=0.0,
-        description="radar odometry local-map radius on these logs (replaces "
-        "radar_odometry.map_radius_m): few scans see each place, so the map is kept for "
-        "revisits to re-anchor to",
-    )
-    gyro_bias_sigma_degps: float = Field(
-        0.0,
-        ge=0.0,
-        description="radar odometry gyro-bias estimate on these logs (replaces "
-        "radar_odometry.gyro_bias_sigma_degps; 0: off): too few scans to tell the bias from "
-        "map error, and scan matching absorbs it",
-    )
+from smokyslam.config.base import Section as _Section
 
 
 class RadarOdometryConfig(_Section):
@@ -197,8 +45,22 @@ class RadarOdometryConfig(_Section):
     kiss_batch_frames: int = Field(3, ge=1, description="kiss-icp: frames stitched per batch")
 
 
+class KeyframeConfig(_Section):
+    """The paper's keyframe gate, one for the pose graph and the maps: a new keyframe when
+    base_link has moved ``translation_m`` along x or y of the last keyframe, or turned
+    ``rotation_rad``, since the last one."""
+
+    translation_m: float = Field(0.2, gt=0.0, description="new keyframe after moving this far")
+    rotation_rad: float = Field(math.pi / 8, gt=0.0, description="or after turning this far")
+
+
 class MappingConfig(_Section):
-    """Occupancy grids: log-odds updates, radar keyframes and stitching, visual flattening."""
+    """Occupancy grids: log-odds updates, radar stitching at keyframes, visual flattening.
+
+    Online maps are re-rendered from their kept keyframes when the backend moves a keyframe
+    further than ``remap_translation_m`` or ``remap_rotation_rad`` from where it was drawn
+    (after a loop closure).
+    """
 
     resolution_m: float = Field(0.1, gt=0.0, description="grid cell side, metres")
     log_odds_hit: float = Field(0.85, gt=0.0, description="added to a cell holding a return")
@@ -207,8 +69,6 @@ class MappingConfig(_Section):
     log_odds_max: float = Field(3.5, gt=0.0, description="clamp, upper bound")
     occupied_thresh: float = Field(0.65, gt=0.0, lt=1.0, description="p above it: occupied")
     free_thresh: float = Field(0.196, gt=0.0, lt=1.0, description="p below it: free")
-    keyframe_translation_m: float = Field(0.2, ge=0.0, description="insert after this in x or y")
-    keyframe_rotation_rad: float = Field(math.pi / 8, ge=0.0, description="or after turning this")
     stitch_method: Literal["raycast", "paper"] = "raycast"
     max_range_m: float = Field(10.0, gt=0.0, description="radar returns are cut to this range")
     local_grid_size_m: float = Field(20.0, gt=0.0, description="side of the paper's local grid")
@@ -216,6 +76,10 @@ class MappingConfig(_Section):
     flatten_min_height_m: float = Field(0.2, description="visual points below are dropped")
     flatten_max_height_m: float = Field(2.0, description="visual points above are dropped")
     min_points_per_cell: int = Field(3, ge=1, description="visual points making a cell occupied")
+    remap_translation_m: float = Field(
+        0.05, gt=0.0, description="a keyframe moved this far: re-render the maps"
+    )
+    remap_rotation_rad: float = Field(0.01, gt=0.0, description="or turned this far")
 
 
 class CameraOdometryConfig(_Section):
@@ -309,8 +173,6 @@ class ScaleConfig(_Section):
 class BackendConfig(_Section):
     """GTSAM pose graph (iSAM2 over Pose2 keyframes) and the policies that feed it."""
 
-    keyframe_translation_m: float = Field(0.2, gt=0.0, description="new keyframe after moving")
-    keyframe_rotation_rad: float = Field(math.pi / 8, gt=0.0, description="or after turning")
     relinearize_threshold: float = Field(0.01, gt=0.0, description="iSAM2, tangent units")
     relinearize_skip: int = Field(1, ge=1, description="iSAM2 updates between checks")
     loop_closure_iterations: int = Field(3, ge=0, description="extra updates after a closure")
@@ -350,79 +212,3 @@ class SlamConfig(_Section):
     submap_frames: int = Field(30, ge=1, description="radar frames in a loop-closure submap")
     submap_voxel_m: float = Field(0.1, ge=0.0, description="submap thinning, one point a voxel")
     visual_map: bool = Field(True, description="keep camera keyframe points for maps/visual")
-
-
-class SmokySlamConfig(_Section):
-    """Root configuration."""
-
-    topics: TopicsConfig = TopicsConfig()
-    smoke: SmokeConfig = SmokeConfig()
-    rig: RigConfig = RigConfig()
-    simulation: SimulationConfig = SimulationConfig()
-    carmen: CarmenConfig = CarmenConfig()
-    radar_odometry: RadarOdometryConfig = RadarOdometryConfig()
-    mapping: MappingConfig = MappingConfig()
-    camera_odometry: CameraOdometryConfig = CameraOdometryConfig()
-    backend: BackendConfig = BackendConfig()
-    slam: SlamConfig = SlamConfig()
-
-
-def deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
-    """A copy of ``base`` with ``override`` merged in; nested mappings merge key by key."""
-    merged = dict(base)
-    for key, value in override.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = deep_update(merged[key], value)
-        else:
-            merged[key] = value
-    return merged
-
-
-def _format_validation_error(error: ValidationError, source: str) -> str:
-    first = error.errors()[0]
-    where = ".".join(str(p) for p in first["loc"])
-    if first["type"] == "extra_forbidden":
-        return f"{source}: unknown config key '{where}'"
-    return f"{source}: invalid value for '{where}': {first['msg']}"
-
-
-def load_config(
-    path: Path | str | None = None, overrides: dict[str, Any] | None = None
-) -> SmokySlamConfig:
-    """Build the effective config: defaults, then a YAML file, then ``overrides`` (nested dict).
-
-    Raises ConfigError on a missing file, bad YAML, an unknown key or an invalid value.
-    """
-    data: dict[str, Any] = {}
-    source = "defaults"
-    if path is not None:
-        path = Path(path)
-        source = str(path)
-        if not path.is_file():
-            raise ConfigError(f"config file not found: {path}")
-        try:
-            loaded = yaml.safe_load(path.read_text()) or {}
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: not valid YAML ({exc.__class__.__name__})") from exc
-        if not isinstance(loaded, dict):
-            raise ConfigError(f"{path}: top level must be a mapping of sections")
-        data = loaded
-    if overrides:
-        data = deep_update(data, overrides)
-    try:
-        return SmokySlamConfig.model_validate(data)
-    except ValidationError as exc:
-        raise ConfigError(_format_validation_error(exc, source)) from None
-
-
-def config_to_yaml(config: SmokySlamConfig) -> str:
-    """The config as YAML text (tuples written as lists), suitable for ``load_config``."""
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
-
-
-def write_config(config: SmokySlamConfig, path: Path | str) -> Path:
-    """Write the effective config into an output folder (``config.yaml``)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(config_to_yaml(config))
-    return path

@@ -16,17 +16,34 @@ from __future__ import annotations
 import logging
 from collections import Counter, deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from smokyslam.backends.camera_gate import CameraGate, CameraHealth, inflate_covariance
-from smokyslam.backends.scale import ScaleEstimator, metric_relative_pose
+from smokyslam.backends.camera_gate import (
+    CameraGate,
+    CameraHealth,
+    get_camera_gate,
+    inflate_covariance,
+)
+from smokyslam.backends.scale import ScaleEstimator, get_scale_estimator, metric_relative_pose
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.frontends.camera.pose import planar_from_camera
-from smokyslam.geometry import interpolate_se2, se2_between, se2_compose, se2_inverse
-from smokyslam.pipelines.keyframes import conjugate
+from smokyslam.geometry import (
+    interpolate_se2,
+    se2_between,
+    se2_compose,
+    se2_conjugate,
+    se2_inverse,
+)
+
+if TYPE_CHECKING:
+    from smokyslam.config import BackendConfig, SlamConfig
 
 logger = logging.getLogger(__name__)
+
+KEEP_S = 10.0
+"""Seconds of camera poses kept for the keyframe pairs still waiting for the camera."""
 
 
 @dataclass(frozen=True)
@@ -63,9 +80,8 @@ class CameraFactorMaker:
     """Keeps recent camera poses; ``factor`` makes one keyframe pair's camera factor.
 
     T_base_camera: (4, 4) mount (optical axes). covariance_scale: variance multiplier on the
-    camera's reported covariances. consistency_chi2: largest
-    Mahalanobis distance (3 dof) between camera and radar steps; larger is an outlier.
-    keep_s: seconds of camera poses kept.
+    camera's reported covariances. consistency_chi2: largest Mahalanobis distance (3 dof)
+    between camera and radar steps; larger is an outlier.
     """
 
     def __init__(
@@ -73,16 +89,14 @@ class CameraFactorMaker:
         T_base_camera: np.ndarray,
         gate: CameraGate,
         scale: ScaleEstimator,
-        covariance_scale: float = 1.0,
-        consistency_chi2: float = 11.34,
-        keep_s: float = 10.0,
+        covariance_scale: float,
+        consistency_chi2: float,
     ) -> None:
         self._mount = planar_from_camera(np.asarray(T_base_camera, dtype=float))
         self._gate = gate
         self._scale = scale
         self._covariance_scale = covariance_scale
         self._consistency_chi2 = consistency_chi2
-        self._keep_s = keep_s
         self._samples: deque[_Sample] = deque()
         self.weight = 0.0
         """Gate weight of the latest frame."""
@@ -116,7 +130,7 @@ class CameraFactorMaker:
                 self.weight,
             )
         )
-        while self._samples and self._samples[0].stamp_s < result.stamp_s - self._keep_s:
+        while self._samples and self._samples[0].stamp_s < result.stamp_s - KEEP_S:
             self._samples.popleft()
         return self.weight
 
@@ -154,7 +168,7 @@ class CameraFactorMaker:
             return None
         covariance = self._covariance_scale * (span[0].covariance + span[-1].covariance)
         metric, metric_cov = metric_relative_pose(step, covariance, estimate)
-        delta, delta_cov = conjugate(metric, metric_cov, self._mount)
+        delta, delta_cov = se2_conjugate(metric, metric_cov, self._mount)
         innovation = se2_between(radar_delta, delta)
         chi2 = float(innovation @ np.linalg.solve(radar_covariance + delta_cov, innovation))
         if chi2 > self._consistency_chi2:
@@ -177,3 +191,16 @@ class CameraFactorMaker:
         if any(s.map_id != span[0].map_id or not s.tracked for s in span):
             return None
         return span
+
+
+def get_camera_factor_maker(
+    backend: BackendConfig, slam: SlamConfig, T_base_camera: np.ndarray
+) -> CameraFactorMaker:
+    """The camera factor maker of the backend and slam config sections."""
+    return CameraFactorMaker(
+        T_base_camera,
+        get_camera_gate(backend.camera_gate),
+        get_scale_estimator(backend.scale),
+        slam.camera_covariance_scale,
+        slam.camera_consistency_chi2,
+    )

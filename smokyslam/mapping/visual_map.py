@@ -1,10 +1,10 @@
-"""The visual map of a fused run: camera landmarks, metric, flattened on the final poses.
+"""The visual map: camera keyframe landmarks, metric, flattened on the trajectory's poses.
 
 At each camera keyframe the camera's inlier landmarks are moved into the camera frame (which
-undoes the camera odometry's own drift), scaled to metres with the current metric scale and
-kept in base_link with their stamp. Only at the end are they placed in the world with the
-fused base pose at that stamp, so a loop closure that moved the poses moves the map with them;
-then they are flattened (height band, >= N points per cell, free space from the cameras).
+undoes the camera odometry's own drift), scaled to metres and kept in base_link with their
+stamp. They are placed in the world with the base pose at that stamp only when the map is
+drawn, so a loop closure that moved the poses moves the map with them; then they are
+flattened (height band, >= N points per cell, free space from the cameras).
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from smokyslam.config import MappingConfig
-from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.geometry import interpolate_se2, se2_compose, se3_inverse, transform_points_2d
 from smokyslam.mapping.flatten import flatten_points
 from smokyslam.mapping.grid import OccupancyGrid, get_occupancy_grid
@@ -35,16 +34,25 @@ class VisualKeyframes:
     def __len__(self) -> int:
         return len(self.stamps_s)
 
-    def add(self, result: CameraOdometryResult, scale_m: float) -> None:
-        """Keep ``result``'s landmarks (camera odometry world, camera units) as metric points
-        in base_link; ``scale_m`` is metres per camera unit of the camera's current map."""
-        landmarks = np.asarray(result.landmarks_world, dtype=float).reshape(-1, 3)
+    def add(
+        self,
+        stamp_s: float,
+        T_world_camera: np.ndarray,
+        landmarks_world: np.ndarray,
+        metres_per_unit: float,
+    ) -> None:
+        """Keep one camera keyframe's landmarks: (M, 3) points in the camera odometry's world
+        (its units), seen from ``T_world_camera`` (4, 4, optical axes), as metric points in
+        base_link; ``metres_per_unit`` is the metric scale of the camera's current map."""
+        landmarks = np.asarray(landmarks_world, dtype=float).reshape(-1, 3)
         if len(landmarks) == 0:
             return
-        T_camera_world = se3_inverse(result.T_world_camera)
-        points_camera = (landmarks @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]) * scale_m
+        T_camera_world = se3_inverse(T_world_camera)
+        points_camera = (landmarks @ T_camera_world[:3, :3].T + T_camera_world[:3, 3]) * (
+            metres_per_unit
+        )
         R, t = self.T_base_camera[:3, :3], self.T_base_camera[:3, 3]
-        self.stamps_s.append(result.stamp_s)
+        self.stamps_s.append(stamp_s)
         self.points_base.append(points_camera @ R.T + t)
 
     def world_points(
@@ -60,7 +68,7 @@ class VisualKeyframes:
         poses = interpolate_se2(stamps_s, poses_world_base, np.asarray(self.stamps_s))
         camera_in_base = self.T_base_camera[:2, 3]
         points, cameras = [], []
-        for pose, local in zip(poses, self.points_base, strict=True):
+        for pose, local in zip(poses, self.points_base, strict=True):  # per keyframe
             world = local.copy()
             world[:, :2] = transform_points_2d(pose, local[:, :2])
             points.append(world)

@@ -1,0 +1,5 @@
+"""``python -m smokyslam.cli``."""
+
+from smokyslam.cli import main
+
+main()

@@ -1,0 +1,124 @@
+"""Commands over logs, maps and configs: simulate, info, map, evaluate, dump-config."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from smokyslam.cli.options import (
+    CameraNoiseOption,
+    ConfigOption,
+    HazeOption,
+    OverwriteOption,
+    RadarLossOption,
+    SmokeOption,
+    effective_config,
+    smoke_overrides,
+)
+from smokyslam.config import config_to_yaml
+from smokyslam.errors import ConfigError
+
+
+def dump_config(config: ConfigOption = None) -> None:
+    """Print the effective configuration as YAML."""
+    typer.echo(config_to_yaml(effective_config(config)), nl=False)
+
+
+def simulate(
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Log to write: .mcap (ROS2) or .bag (ROS1).")
+    ],
+    world: Annotated[
+        str, typer.Option(help="office, warehouse, corridor, or a map_server floor-plan YAML.")
+    ] = "office",
+    duration: Annotated[float, typer.Option(min=1.0, help="Seconds of walking.")] = 60.0,
+    seed: Annotated[int, typer.Option(help="Seed for the world, the walk and the sensors.")] = 0,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing log.")] = False,
+    config: ConfigOption = None,
+) -> None:
+    """Simulate a walk through a building and record radar, camera, IMU and ground truth."""
+    if out.suffix not in (".mcap", ".bag"):
+        raise ConfigError(f"--out must end in .mcap or .bag, got '{out.name}'")
+    cfg = effective_config(config)
+    from smokyslam.progress import progress_bar
+    from smokyslam.sim.simulate import simulate as run_simulation
+
+    with progress_bar(f"simulating {world}", duration) as update:
+        result = run_simulation(
+            world, duration, seed, out, cfg, overwrite=overwrite, on_progress=update
+        )
+    typer.echo(
+        f"wrote {result.log_path}: {result.duration_s:.0f} s of {result.world.name}, "
+        f"path {result.trajectory.path_length_m:.1f} m, {result.radar_frames} radar frames "
+        f"({result.radar_points_per_frame:.0f} points each), {result.camera_frames} images, "
+        f"in {result.wall_s:.1f} s ({result.realtime_factor:.1f}x real time)"
+    )
+
+
+def info(
+    log: Annotated[Path, typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz).")],
+    smoke: SmokeOption = None,
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    config: ConfigOption = None,
+) -> None:
+    """Print each topic of a log: type, message count, rate, and the log's duration."""
+    cfg = effective_config(config, smoke_overrides(smoke, radar_loss, camera_noise, haze))
+    from smokyslam.frontends.readers.registry import open_log
+    from smokyslam.loginfo import format_summary
+
+    typer.echo(format_summary(open_log(log, cfg).summary()))
+    level = cfg.smoke
+    if level.radar_loss or level.camera_noise or level.haze:
+        typer.echo(
+            f"smoke at replay: {level.radar_loss:g}:{level.camera_noise:g}:{level.haze:g} "
+            "(radar loss : camera noise : haze)"
+        )
+
+
+def map_command(
+    log: Annotated[Path, typer.Argument(help="A log with radar and ground-truth poses.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    poses: Annotated[
+        str, typer.Option(help="Pose source for stitching (only 'ground-truth' here).")
+    ] = "ground-truth",
+    smoke: SmokeOption = None,
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Build the sparse radar map on ground-truth poses and score it against the true map."""
+    if poses != "ground-truth":
+        raise ConfigError(f"--poses must be 'ground-truth', got '{poses}' (use 'run' for SLAM)")
+    cfg = effective_config(config, smoke_overrides(smoke, radar_loss, camera_noise, haze))
+    from smokyslam.pipelines.truth_mapping import run_truth_mapping
+
+    result = run_truth_mapping(log, cfg, out, overwrite=overwrite)
+    for name, scores in result.metrics.get("maps", {}).items():
+        typer.echo(f"{name}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()))
+    typer.echo(f"wrote {result.out_dir}/ in {result.wall_s:.1f} s")
+
+
+def evaluate(
+    map_yaml: Annotated[Path, typer.Argument(help="A map_server map YAML to score.")],
+    truth: Annotated[Path, typer.Option(help="Ground truth: a log with a map, or a map YAML.")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="JSON file for the metrics.")
+    ] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Score a saved map against ground truth (error index, occupied precision/recall/F1/IoU)."""
+    from smokyslam.pipelines.evaluate_map import evaluate_map_file
+
+    metrics = evaluate_map_file(map_yaml, truth, effective_config(config))
+    for key, value in metrics.items():
+        typer.echo(f"{key:20s} {value:.4f}")
+    target = out or map_yaml.with_name(map_yaml.stem + "_metrics.json")
+    target.write_text(json.dumps(metrics, indent=2) + "\n")
+    typer.echo(f"wrote {target}")

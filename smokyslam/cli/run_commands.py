@@ -1,0 +1,163 @@
+"""Commands that run estimators: run, compare, demo, bench."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from smokyslam.cli.options import (
+    CalibrationOption,
+    CameraNoiseOption,
+    ConfigOption,
+    HazeOption,
+    OverwriteOption,
+    RadarLossOption,
+    SmokeOption,
+    effective_config,
+    smoke_overrides,
+    summary_line,
+)
+
+
+def run(
+    log: Annotated[Path, typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz) log.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    odometry: Annotated[
+        str, typer.Option(help="Odometry source: fused, radar, camera or dead-reckoning.")
+    ] = "fused",
+    smoke: SmokeOption = None,
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    rerun: Annotated[
+        Path | None, typer.Option("--rerun", help="Also write a Rerun recording (.rrd) here.")
+    ] = None,
+    calibration: CalibrationOption = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Run SLAM/odometry on a log: trajectory (TUM, KITTI), maps, metrics and config."""
+    cfg = effective_config(
+        config, smoke_overrides(smoke, radar_loss, camera_noise, haze), calibration
+    )
+    from smokyslam.frontends.readers.registry import open_log
+    from smokyslam.pipelines.run import run_log
+    from smokyslam.pipelines.sources import get_source
+    from smokyslam.progress import progress_bar
+
+    get_source(odometry)
+    duration_s = open_log(log, cfg).summary().duration_s
+    with progress_bar(f"{odometry} on {log.name}", duration_s) as update:
+        result = run_log(
+            log,
+            odometry,
+            cfg,
+            out,
+            on_progress=lambda t, s: update(t, status=s),
+            rerun_path=rerun,
+            overwrite=overwrite,
+        )
+    typer.echo(summary_line(result.metrics))
+    typer.echo(f"wrote {result.out_dir}/")
+
+
+def compare(
+    log: Annotated[Path, typer.Argument(help="A log with ground truth (e.g. a simulation).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    sources: Annotated[
+        str, typer.Option(help="Comma-separated sources: camera, radar, dead-reckoning, fused.")
+    ] = "camera,radar,dead-reckoning,fused",
+    smoke: Annotated[
+        str,
+        typer.Option(help="Comma-separated smoke levels R:C[:H] (radar loss, camera noise, haze)."),
+    ] = "0:0,0.1:0.2,0.2:0.4",
+    haze: Annotated[
+        str | None,
+        typer.Option(help="Comma-separated haze densities B (1/m): each smoke level runs again."),
+    ] = None,
+    jobs: Annotated[
+        int | None,
+        typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
+    ] = None,
+    calibration: CalibrationOption = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Run odometry sources at several smoke levels: run folders, a table and plots."""
+    cfg = effective_config(config, calibration=calibration)
+    from smokyslam.pipelines.compare import compare as run_compare
+    from smokyslam.pipelines.compare import parse_smoke_levels, parse_sources
+    from smokyslam.progress import progress_bar
+
+    source_list, levels = parse_sources(sources), parse_smoke_levels(smoke, haze)
+    total = len(source_list) * len(levels)
+    with progress_bar(f"comparing {total} runs", total, unit="items") as update:
+        result = run_compare(
+            log, source_list, levels, cfg, out, jobs, on_progress=update, overwrite=overwrite
+        )
+    typer.echo(result.markdown_path.read_text(), nl=False)
+    typer.echo(f"wrote {result.out_dir}/ ({total} runs in {result.wall_s:.1f} s)")
+    if result.failed:
+        typer.echo(f"error: {len(result.failed)} of {total} runs failed", err=True)
+        raise typer.Exit(1)
+
+
+def demo(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("demo_output"),
+    duration: Annotated[float, typer.Option(min=10.0, help="Seconds of walking.")] = 60.0,
+    smoke: SmokeOption = None,
+    radar_loss: RadarLossOption = None,
+    camera_noise: CameraNoiseOption = None,
+    haze: HazeOption = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Simulate a smoky office, run SLAM on it, and write every output under --out."""
+    from smokyslam.pipelines.demo import DEMO_SMOKE, run_demo
+    from smokyslam.progress import console
+    from smokyslam.smoke import SmokeLevel
+
+    values = {
+        "radar_loss": DEMO_SMOKE.radar_loss,
+        "camera_noise": DEMO_SMOKE.camera_noise,
+        "haze": DEMO_SMOKE.haze,
+    }
+    values.update(smoke_overrides(smoke, radar_loss, camera_noise, haze))
+    level = SmokeLevel.from_values(**values)
+    result = run_demo(
+        out, effective_config(config), duration, console.log, level, overwrite=overwrite
+    )
+    sim = result.simulation
+    typer.echo(
+        f"log:            {sim.log_path} ({sim.duration_s:.0f} s, {sim.wall_s:.1f} s to make)"
+    )
+    typer.echo(f"map on truth:   {result.mapping_dir}/maps/radar_sparse_vs_truth.png")
+    for run_result in result.runs:
+        typer.echo(f"{run_result.source + ':':15s} {run_result.out_dir}/")
+        typer.echo(f"{'':15s} {summary_line(run_result.metrics)}")
+    typer.echo(f"everything is under {out}/")
+
+
+def bench(
+    out: Annotated[Path, typer.Option("--out", "-o", help="JSON file for the numbers.")] = Path(
+        "bench.json"
+    ),
+    config: ConfigOption = None,
+) -> None:
+    """Measure speed and memory (ray casting, simulation, rendering, mapping) into JSON."""
+    import tempfile
+
+    from smokyslam.benchmarks.suite import run_benchmarks
+    from smokyslam.progress import console
+
+    with tempfile.TemporaryDirectory(prefix="smokyslam-bench-") as workdir:
+        results = run_benchmarks(
+            Path(workdir), effective_config(config), on_step=lambda s: console.log(s)
+        )
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    for key, value in results.items():
+        typer.echo(f"{key:32s} {value:12.2f}")
+    typer.echo(f"wrote {out}")

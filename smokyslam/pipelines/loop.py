@@ -1,0 +1,273 @@
+"""The one run loop: every source, every log, the same table of contents.
+
+Read each sensor frame once, in time order. Apply the run's smoke to it where it is used (the
+radar scan here; the camera frame where the camera tracks it). Then, in the log's order:
+
+1. the frontends the source needs (radar odometry or dead reckoning; camera odometry);
+2. the backend (keyframes, factors, loop closures, one iSAM2 update per keyframe);
+3. the online maps (a radar keyframe's scan; a metric camera keyframe's landmarks);
+4. the recorder (Rerun, or nothing).
+
+The sources differ only in the stages switched on (``sources.py``). The camera may track in a
+worker process; :class:`_InOrder` hands its results to the backend in the order one process
+would have, so results do not depend on timing. Ground truth never enters: readers yield
+sensor frames only, and evaluation reads the truth apart, after the loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from smokyslam.backends.slam import SlamBackend
+from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
+from smokyslam.frontends.camera.result import CameraOdometryResult
+from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
+from smokyslam.mapping.online import OnlineMaps
+from smokyslam.pipelines.camera_stage import CameraStage, Tracked
+from smokyslam.smoke import SmokeEmulator
+from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan
+from smokyslam.viz.rerun_recorder import Recorder
+
+logger = logging.getLogger(__name__)
+
+ProgressCallback = Callable[[float, str], None]
+"""Called as frames are processed: (stamp_s of the frame just processed, health text)."""
+
+MAX_LAG = 30
+"""Frames waiting for the camera worker before reading waits for it too."""
+
+
+@dataclass
+class Stages:
+    """The stages of one run. ``radar``: the radar frontend (None: no radar). ``camera``: the
+    camera stage (None: no camera). ``camera_steps``: set when the camera carries the
+    trajectory (camera-only); otherwise camera results feed the backend's camera factors.
+    ``visual_map``: camera keyframes feed the visual map."""
+
+    smoke: SmokeEmulator
+    radar: RadarFrontend | None
+    camera: CameraStage | None
+    camera_steps: MetricCameraSteps | None
+    backend: SlamBackend
+    maps: OnlineMaps
+    recorder: Recorder
+    visual_map: bool
+
+
+@dataclass
+class RunEstimate:
+    """What the loop estimated, in its own map frame (first keyframe at the origin).
+
+    stamps_s (N,), poses_world_base (N, 3), lost (N,), camera_weight (N,): one per primary
+    frame (the camera's gate weight there). keyframe_stamps_s (K,), keyframe_camera (K,): one
+    per keyframe (a camera factor ends there). frames_per_s: frames over the stages' busy
+    time. maps: the online maps, to snapshot or render in any
+    frame. graph: the backend's numbers (factors, keyframes, camera pairs, stage seconds), as
+    ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
+    """
+
+    stamps_s: np.ndarray
+    poses_world_base: np.ndarray
+    lost: np.ndarray
+    camera_weight: np.ndarray
+    keyframe_stamps_s: np.ndarray
+    keyframe_camera: np.ndarray
+    frames_per_s: float
+    maps: OnlineMaps
+    graph: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class _Clock:
+    """Busy seconds per stage."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+
+    def add(self, stage: str, seconds: float) -> None:
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + seconds
+
+    @contextlib.contextmanager
+    def time(self, stage: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.add(stage, time.perf_counter() - start)
+
+
+class _InOrder:
+    """Radar frames and camera results (finished, or still tracking in the worker) in the
+    log's order; :meth:`ready` hands out the front of the queue up to the first camera frame
+    still tracking (``block``: everything, waiting for the camera)."""
+
+    def __init__(self) -> None:
+        self._queue: deque[RadarFrame | Future | Tracked] = deque()
+
+    def __len__(self) -> int:
+        return len(self._queue)
+
+    def extend(self, items: Iterable[RadarFrame | Future | Tracked]) -> None:
+        self._queue.extend(items)
+
+    def ready(self, block: bool) -> Iterator[RadarFrame | Tracked]:
+        while self._queue:
+            item = self._queue[0]
+            if isinstance(item, Future):
+                if not (block or item.done()):
+                    return
+                item = item.result()
+            self._queue.popleft()
+            yield item
+
+
+class RunLoop:
+    """Runs :class:`Stages` over a stream of frames: one verb, :meth:`run`."""
+
+    def __init__(self, stages: Stages, on_progress: ProgressCallback | None = None) -> None:
+        self.stages = stages
+        self._on_progress = on_progress
+        self._order = _InOrder()
+        self._clock = _Clock()
+        self._camera_restarts = 0
+
+    def run(self, frames: Iterable[Frame]) -> RunEstimate:
+        """Every frame through the stages, then the estimate (the camera worker is stopped
+        on the way out, whatever happens)."""
+        try:
+            for frame in frames:
+                self._read(frame)
+                self._hand_over(block=len(self._order) > MAX_LAG)
+            self._finish()
+        finally:
+            if self.stages.camera is not None:
+                self.stages.camera.shutdown()
+        return self._estimate()
+
+    # ------------------------------------------------------------------ reading
+
+    def _read(self, frame: Frame) -> None:
+        radar, camera = self.stages.radar, self.stages.camera
+        if isinstance(frame, ImuSample) and radar is not None:
+            radar.add_imu(frame)
+        elif isinstance(frame, RadarScan) and radar is not None:
+            with self._clock.time("radar"):
+                self._order.extend(radar.register(self.stages.smoke.apply(frame)))
+        elif isinstance(frame, CameraFrame) and camera is not None and camera.wants(frame):
+            self._order.extend([camera.track(frame)])  # smoked where it is tracked
+
+    def _finish(self) -> None:
+        if self.stages.radar is not None:
+            with self._clock.time("radar"):
+                self._order.extend(self.stages.radar.flush())
+        self._hand_over(block=True)
+        if self.stages.camera_steps is not None:
+            for step in self.stages.camera_steps.flush():
+                self._camera_step(step)
+
+    # ------------------------------------------------------------------ handing over
+
+    def _hand_over(self, block: bool) -> None:
+        for item in self._order.ready(block):
+            if isinstance(item, RadarFrame):
+                self._radar_frame(item)
+            else:
+                result, seconds = item
+                self._clock.add("camera", seconds)
+                self._camera_result(result)
+
+    def _radar_frame(self, frame: RadarFrame) -> None:
+        stages = self.stages
+        with self._clock.time("backend"):
+            keyframe = stages.backend.add_odometry(
+                frame.odometry, stages.radar.points_base_xy(frame)
+            )
+        with self._clock.time("maps"):
+            if keyframe is not None:
+                stages.maps.add_radar_keyframe(keyframe.index, frame.scan)
+        self._processed(frame.odometry.stamp_s, frame.scan)
+
+    def _camera_result(self, result: CameraOdometryResult) -> None:
+        stages = self.stages
+        self._camera_restarts = result.reinitializations
+        if stages.camera_steps is not None:  # the camera carries the trajectory
+            for step in stages.camera_steps.add(result):
+                self._camera_step(step)
+            return
+        with self._clock.time("backend"):
+            weight = stages.backend.add_camera(result)
+        scale_m = stages.backend.camera_scale_m
+        if weight > 0.0 and scale_m is not None:
+            self._visual_keyframe(result, scale_m)
+
+    def _camera_step(self, step: CameraStep) -> None:
+        with self._clock.time("backend"):
+            self.stages.backend.add_odometry(step.odometry, np.zeros((0, 2)))
+        self._visual_keyframe(step.result, self.stages.camera_steps.metres_per_unit)
+        self._processed(step.odometry.stamp_s, None)
+
+    def _visual_keyframe(self, result: CameraOdometryResult, metres_per_unit: float) -> None:
+        if not (self.stages.visual_map and result.is_keyframe and len(result.landmarks_world)):
+            return
+        with self._clock.time("maps"):
+            self.stages.maps.add_camera_keyframe(
+                result.stamp_s, result.T_world_camera, result.landmarks_world, metres_per_unit
+            )
+
+    def _processed(self, stamp_s: float, scan: RadarScan | None) -> None:
+        backend = self.stages.backend
+        self.stages.recorder.log_frame(stamp_s, backend.latest_pose(), scan)
+        if self._on_progress is not None:
+            self._on_progress(stamp_s, backend.status.text())
+
+    # ------------------------------------------------------------------ result
+
+    def _estimate(self) -> RunEstimate:
+        backend = self.stages.backend
+        stamps_s, poses = backend.trajectory()
+        busy_s = sum(self._clock.seconds.values())
+        camera_weight = np.asarray(backend.camera_weight, dtype=float)
+        # Lost: the primary odometry could not measure and no healthy camera carried the pose.
+        lost = np.asarray(backend.frame_lost, dtype=bool) & (camera_weight <= 0.0)
+        factors = backend.factor_counts
+        graph = {
+            "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure")},
+            "camera_pairs": backend.camera_pairs,
+            "keyframes": len(backend.keyframe_stamps_s),
+            "map_redraws": self.stages.maps.radar_redraws,
+            "stage_s": dict(self._clock.seconds),
+        }
+        extra: dict[str, Any] = {}
+        if self.stages.camera is not None:
+            extra["reinitializations"] = self._camera_restarts
+        if self.stages.camera_steps is not None:
+            extra["metres_per_unit"] = self.stages.camera_steps.metres_per_unit
+            extra["metric_scale"] = self.stages.camera_steps.metric
+        logger.info(
+            "%d frames, %d keyframes, factors %s, camera pairs %s",
+            len(stamps_s),
+            graph["keyframes"],
+            graph["factors"],
+            graph["camera_pairs"],
+        )
+        return RunEstimate(
+            stamps_s=stamps_s,
+            poses_world_base=poses,
+            lost=lost,
+            camera_weight=camera_weight,
+            keyframe_stamps_s=np.asarray(backend.keyframe_stamps_s, dtype=float),
+            keyframe_camera=np.asarray(backend.keyframe_camera, dtype=bool),
+            frames_per_s=len(stamps_s) / busy_s if busy_s > 0 else float("nan"),
+            maps=self.stages.maps,
+            graph=graph,
+            extra=extra,
+        )
