@@ -7,7 +7,7 @@ import pytest
 from rosbags.rosbag1 import Writer as Writer1
 
 from smokyslam.config import TopicsConfig
-from smokyslam.errors import LogError
+from smokyslam.errors import LogError, TopicError
 from smokyslam.frontends.readers.rosbag import RosbagReader
 from smokyslam.geometry import R_BODY_OPTICAL, GridSpec, se3_from_se2, se3_matrix
 from smokyslam.rosmsg import MessageBuilder
@@ -242,3 +242,17 @@ def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
 def test_writer_rejects_unknown_suffix(tmp_path: Path) -> None:
     with pytest.raises(LogError, match=r"unknown log format '\.txt'"):
         LogWriter(tmp_path / "x.txt", TopicsConfig())
+
+
+def test_frames_decode_only_the_streams_asked_for(log: tuple[Path, dict]) -> None:
+    path, _ = log
+    reader = RosbagReader(path, TopicsConfig())
+    kinds = {type(f).__name__ for f in reader.frames(("radar", "imu"))}
+    assert kinds == {"RadarScan", "ImuSample"}
+    images = list(reader.frames(("camera_image",)))
+    assert [type(f).__name__ for f in images] == ["CameraFrame"] * 2
+    assert all(f.depth_m is None and f.intrinsics == INTRINSICS for f in images)
+    with_depth = list(reader.frames(("camera_image", "camera_depth")))
+    assert all(f.depth_m is not None for f in with_depth)
+    with pytest.raises(TopicError, match="unknown sensor streams"):
+        list(reader.frames(("ground_truth_pose",)))

@@ -72,8 +72,8 @@ class _UpsideDownRadar:
     def __getattr__(self, name):
         return getattr(self.reader, name)
 
-    def frames(self):
-        for frame in self.reader.frames():
+    def frames(self, streams=None):
+        for frame in self.reader.frames(streams):
             if isinstance(frame, RadarScan):
                 frame = dataclasses.replace(frame, points_xyz_m=frame.points_xyz_m @ ROLL_PI)
             yield frame

@@ -135,8 +135,8 @@ class _NoGroundTruth:
             raise AssertionError(f"an estimator asked for {name}")
         return getattr(self._reader, name)
 
-    def frames(self):
-        for frame in self._reader.frames():
+    def frames(self, streams=None):
+        for frame in self._reader.frames(streams):
             assert "GroundTruth" not in type(frame).__name__
             yield frame
 

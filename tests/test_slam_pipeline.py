@@ -234,8 +234,8 @@ class _BlindCamera:
     def __getattr__(self, name):
         return getattr(self._reader, name)
 
-    def frames(self):
-        for frame in self._reader.frames():
+    def frames(self, streams=None):
+        for frame in self._reader.frames(streams):
             if isinstance(frame, CameraFrame) and self._start_s <= frame.stamp_s < self._end_s:
                 frame = dataclasses.replace(frame, image=np.zeros_like(frame.image))
             yield frame

@@ -6,7 +6,7 @@ an explicit registry (``frontends.readers.registry``), never by probing attribut
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -41,6 +41,11 @@ class LogSummary:
     streams: list[StreamSummary] = field(default_factory=list)
 
 
+SENSOR_STREAMS = ("radar", "imu", "camera_image", "camera_depth")
+"""What ``frames()`` can yield: radar scans, IMU samples, camera images (with their
+intrinsics) and the depth images paired with them."""
+
+
 class LogReader(Protocol):
     """A sensor log opened for replay."""
 
@@ -50,9 +55,10 @@ class LogReader(Protocol):
         """Per-topic type, count and rate, and the log's duration."""
         ...
 
-    def frames(self) -> Iterator[Frame]:
+    def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
         """Every radar, camera and IMU frame, in time order, each decoded once. Never ground
-        truth: estimators read this and nothing else."""
+        truth: estimators read this and nothing else. ``streams``: only these of
+        :data:`SENSOR_STREAMS` (None: all), so a run decodes nothing it does not use."""
         ...
 
     def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:

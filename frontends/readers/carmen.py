@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import gzip
 import logging
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,9 +164,10 @@ class CarmenReader:
         ]
         return LogSummary(self.path, "carmen", (count - 1) * self.dt_s, 0.0, streams)
 
-    def frames(self) -> Iterator[Frame]:
+    def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
         """Gyro sample and radar scan per ``FLASER`` line (same seed, same frames on every
-        call)."""
+        call). ``streams`` is accepted for the protocol; both are always emulated (the
+        emulation draws them from one random stream)."""
         config = self._config
         rng = np.random.default_rng(config.carmen.seed)
         poses_base = self._log.poses_world_base

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -31,7 +31,7 @@ from rosbags.rosbag2 import ReaderError as ReaderError2
 
 from smokyslam.config import TopicsConfig
 from smokyslam.errors import LogError, MessageError, TopicError
-from smokyslam.frontends.readers.base import LogSummary, StreamSummary
+from smokyslam.frontends.readers.base import SENSOR_STREAMS, LogSummary, StreamSummary
 from smokyslam.rosmsg import STREAM_MSGTYPES, header_stamp_ns, typestore_for
 from smokyslam.rosmsg_decode import (
     depth_from_msg,
@@ -58,9 +58,6 @@ DEPTH_WAIT_S = 0.1
 """Log time an image waits for its depth image before it is released without depth."""
 DEPTH_MATCH_S = 0.001
 """Largest header-stamp difference between an image and the depth image paired with it."""
-
-SENSOR_STREAMS = ("radar", "camera_info", "camera_image", "camera_depth", "imu")
-"""The streams ``frames()`` reads: never ground truth."""
 
 _READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
 _NS = 1e-9
@@ -216,11 +213,22 @@ class RosbagReader:
         stamps_s, first = np.unique(np.asarray(stamps, dtype=float), return_index=True)
         return GroundTruthTrajectory(stamps_s, np.asarray(poses, dtype=float)[first])
 
-    def frames(self) -> Iterator[Frame]:
-        """Radar, camera (with intrinsics and paired depth) and IMU frames."""
-        assembler = _FrameAssembler(self.camera_intrinsics(), "camera_depth" in self.stream_topics)
+    def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
+        """Radar, camera (with intrinsics and paired depth) and IMU frames; ``streams``: only
+        these (``SENSOR_STREAMS`` names; None: all). Never ground truth."""
+        wanted = set(SENSOR_STREAMS if streams is None else streams)
+        if unknown := wanted - set(SENSOR_STREAMS):
+            raise TopicError(f"unknown sensor streams {sorted(unknown)}: {SENSOR_STREAMS}")
+        if "camera_image" in wanted:
+            wanted.add("camera_info")
+        else:
+            wanted.discard("camera_depth")
+        has_depth = "camera_depth" in wanted and "camera_depth" in self.stream_topics
+        if not has_depth:
+            wanted.discard("camera_depth")
+        assembler = _FrameAssembler(self.camera_intrinsics(), has_depth)
         dropped_before = self.dropped_points
-        streams = [s for s in SENSOR_STREAMS if s in STREAM_MSGTYPES]
+        streams = [s for s in STREAM_MSGTYPES if s in wanted]
         for stream, stamp_s, msg in self._messages(*streams):
             try:
                 self._dispatch(assembler, stream, stamp_s, msg)

@@ -42,8 +42,9 @@ logger = logging.getLogger(__name__)
 ProgressCallback = Callable[[float, str], None]
 """Called as frames are processed: (stamp_s of the frame just processed, health text)."""
 
-MAX_LAG = 30
-"""Frames waiting for the camera worker before reading waits for it too."""
+MAX_LAG = 300
+"""Frames waiting for the camera worker before reading waits for it too (a few seconds of
+log: reading and radar go on while the worker starts)."""
 
 
 @dataclass
@@ -61,6 +62,16 @@ class Stages:
     maps: OnlineMaps
     recorder: Recorder
     visual_map: bool
+
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """The sensor streams these stages use (the reader decodes nothing else)."""
+        streams = ("radar", "imu") if self.radar is not None else ()
+        if self.camera is not None:
+            streams += ("camera_image",)
+            if self.smoke.needs_depth:  # haze needs each pixel's depth
+                streams += ("camera_depth",)
+        return streams
 
 
 @dataclass

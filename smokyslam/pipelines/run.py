@@ -53,7 +53,7 @@ def run_source(
     """The one run loop of ``source`` over an open log, with no files: the estimate, in its
     own map frame. The reader's ground truth is never touched."""
     stages = build_stages(get_source(source), reader, config, recorder or NullRecorder())
-    return RunLoop(stages, on_progress).run(reader.frames())
+    return RunLoop(stages, on_progress).run(reader.frames(stages.streams))
 
 
 def evaluate_source(
