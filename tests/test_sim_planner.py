@@ -12,8 +12,9 @@ from sim_scenes import write_robot_floorplan
 from smokyslam.config import SimulationConfig, TrajectoryConfig
 from smokyslam.errors import ConfigError, WorldError
 from smokyslam.geometry import wrap_angle
-from smokyslam.sim.planner import SAMPLE_RATE_HZ, plan_walk
+from smokyslam.sim.planner import plan_walk
 from smokyslam.sim.walk_graph import clearance_map_m
+from smokyslam.sim.walk_loop import SAMPLE_RATE_HZ
 from smokyslam.sim.world import box_world
 from smokyslam.sim.worlds import build_world, generate_world
 

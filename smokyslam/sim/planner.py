@@ -1,6 +1,7 @@
 """Walking paths: a smooth, timed closed tour of a World, walked forwards like a person.
 
-Steps 1-4 (walkable cells, stops, tours, legs) are in :mod:`smokyslam.sim.walk_graph`; then:
+Steps 1-4 (walkable cells, stops, tours, legs) are in :mod:`smokyslam.sim.walk_graph` and
+step 7's timing in :mod:`smokyslam.sim.walk_loop`; here:
 
 5. Where the walker turns back (> 100 deg at a stop) it walks a teardrop loop around the stop.
 6. Smoothing until the curvature allows ``min_speed`` within the turn-rate limit, pushing the
@@ -17,22 +18,19 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PchipInterpolator
-from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+from scipy.interpolate import CubicSpline
+from scipy.ndimage import gaussian_filter1d
 
 from smokyslam.config import TrajectoryConfig
 from smokyslam.errors import ConfigError
 from smokyslam.geometry import wrap_angle
 from smokyslam.sim.trajectory import Trajectory
 from smokyslam.sim.walk_graph import WalkGrid, WalkLegs, growing_tours, tour_stops, walk_clearance_m
+from smokyslam.sim.walk_loop import TURN_MARGIN, WalkLoop, arc_lengths
 from smokyslam.sim.world import World
 
 logger = logging.getLogger(__name__)
 
-SAMPLE_RATE_HZ = 200.0  # trajectory samples per second
-_ACCEL_MPS2 = 0.4  # walking speed changes at most this fast
-_TURN_MARGIN = 0.95  # planned yaw rates stay 5 % under the limit
-_SPEED_MARGIN = 0.01  # planned speeds stay 1 % inside [min_speed, max_speed]
 _PREFERRED_SPEED = 0.75  # of max_speed: repeated tours are walked near this pace
 _LOOP_TURN_RAD = np.radians(100.0)  # sharper turns at a waypoint become teardrop loops
 _TANGENT_BACK_M = 1.5  # a teardrop leaves the leg this far before its waypoint
@@ -41,7 +39,7 @@ _DS_M = 0.05  # polyline spacing while smoothing
 
 def turn_radius_m(config: TrajectoryConfig) -> float:
     """Tightest curve radius walkable at ``min_speed_mps`` within the turn-rate limit."""
-    return config.min_speed_mps / (_TURN_MARGIN * config.max_turn_rate_radps)
+    return config.min_speed_mps / (TURN_MARGIN * config.max_turn_rate_radps)
 
 
 def loop_radius_m(config: TrajectoryConfig) -> float:
@@ -52,10 +50,6 @@ def loop_radius_m(config: TrajectoryConfig) -> float:
 def start_clearance_m(config: TrajectoryConfig, resolution_m: float) -> float:
     """Clearance a start or waypoint needs for a loop around it."""
     return loop_radius_m(config) + walk_clearance_m(config, resolution_m)
-
-
-def _arc_lengths(path: np.ndarray) -> np.ndarray:
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
 
 
 def _point_at(path: np.ndarray, cum: np.ndarray, s_m: float) -> np.ndarray:
@@ -85,7 +79,7 @@ def _resample_closed(points: np.ndarray, start_s: float = 0.0) -> np.ndarray:
     closed = np.vstack([points, points[:1]])
     step = np.linalg.norm(np.diff(closed, axis=0), axis=1)
     closed = closed[np.concatenate([[True], step > 1e-9])]
-    cum = _arc_lengths(closed)
+    cum = arc_lengths(closed)
     n = max(16, round(cum[-1] / _DS_M))
     s = (start_s + np.arange(n) * cum[-1] / n) % cum[-1]
     return np.stack([np.interp(s, cum, closed[:, 0]), np.interp(s, cum, closed[:, 1])], axis=-1)
@@ -99,7 +93,7 @@ def _respace_smooth(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (checked at the point and a third of a step to either side), as the final walk sees it.
     """
     closed = np.vstack([points, points[:1]])
-    cum = _arc_lengths(closed)
+    cum = arc_lengths(closed)
     n = max(16, round(cum[-1] / _DS_M))
     spline = CubicSpline(cum, closed, bc_type="periodic")
     s = (np.arange(n)[:, None] + np.array([-1.0, 0.0, 1.0]) / 3.0) * cum[-1] / n
@@ -107,76 +101,6 @@ def _respace_smooth(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cross = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
     kappa = np.abs(cross) / np.linalg.norm(d1, axis=-1) ** 3
     return spline(s[:, 1]), kappa.max(axis=1)
-
-
-class _Walk:
-    """A closed tour as a periodic spline with its curvature-limited speeds along arc length."""
-
-    def __init__(self, points: np.ndarray, config: TrajectoryConfig, clear: bool = True) -> None:
-        closed = np.vstack([points, points[:1]])
-        cum = _arc_lengths(closed)
-        self.spline = CubicSpline(cum, closed, bc_type="periodic")
-        self.length_m = float(cum[-1])
-        # Nodes split each knot interval in three: curvature peaks sit at the knots.
-        self.s = (cum[:-1, None] + np.diff(cum)[:, None] * np.arange(3) / 3.0).ravel()
-        d1, d2 = self.spline(self.s, 1), self.spline(self.s, 2)
-        self.metric = np.linalg.norm(d1, axis=1)  # metres walked per unit of s (about 1)
-        self.kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / self.metric**3
-        # Curvature peaks can fall between nodes: cap speeds by the largest of five neighbours.
-        kappa_peak = maximum_filter1d(np.abs(self.kappa), size=5, mode="wrap")
-        turn_limited = _TURN_MARGIN * config.max_turn_rate_radps / np.maximum(kappa_peak, 1e-9)
-        # Plan 1 % inside the speed limits: sampling and interpolation wobble by a few 0.1 %.
-        self.v_min = config.min_speed_mps * (1.0 + _SPEED_MARGIN)
-        self.v_max = config.max_speed_mps * (1.0 - _SPEED_MARGIN)
-        self.v_cap = np.clip(turn_limited, self.v_min, self.v_max)
-        # Walkable within every limit: clear of walls, and no curve too tight for min_speed.
-        self.feasible = clear and bool(turn_limited.min() >= self.v_min)
-
-    def speeds(self, cruise_mps: float) -> np.ndarray:
-        """(n,) speed at ``self.s``: capped by cruise and curvature, then acceleration-limited."""
-        n, two_a = len(self.s), 2.0 * _ACCEL_MPS2
-        s3 = np.concatenate([self.s - self.length_m, self.s, self.s + self.length_m])
-        u = np.tile(np.minimum(self.v_cap, cruise_mps) ** 2, 3)  # three laps: periodic limits
-        forward = two_a * s3 + np.minimum.accumulate(u - two_a * s3)
-        backward = -two_a * s3 + np.minimum.accumulate((u + two_a * s3)[::-1])[::-1]
-        return np.sqrt(np.minimum(u, np.minimum(forward, backward))[n : 2 * n])
-
-    def node_times(self, cruise_mps: float) -> np.ndarray:
-        """(n + 1,) seconds at ``self.s`` and back at the start."""
-        v = self.speeds(cruise_mps)
-        ds = np.diff(np.append(self.s, self.length_m)) * self.metric
-        dt = 2.0 * ds / (v + np.roll(v, -1))
-        return np.concatenate([[0.0], np.cumsum(dt)])
-
-    def duration_s(self, cruise_mps: float) -> float:
-        return float(self.node_times(cruise_mps)[-1])
-
-    def cruise_for(self, duration_s: float) -> float:
-        """Cruise speed making one lap last ``duration_s`` (clamped to the speed limits)."""
-        lo, hi = self.v_min, self.v_max
-        for _ in range(50):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.duration_s(mid) > duration_s else (lo, mid)
-        return 0.5 * (lo + hi)
-
-    def sample(self, duration_s: float, cruise_mps: float, laps: int = 1) -> Trajectory:
-        """Poses at SAMPLE_RATE_HZ over ``[0, duration_s]`` walking ``laps`` laps at cruise speed.
-
-        Laps lasting within 0.1 % of ``duration_s`` are stretched to end exactly on time; longer
-        ones are cut off at ``duration_s``.
-        """
-        t_lap = self.node_times(cruise_mps)
-        t_nodes = np.append((t_lap[:-1] + t_lap[-1] * np.arange(laps)[:, None]).ravel(), 0.0)
-        t_nodes[-1] = laps * t_lap[-1]
-        s_nodes = np.append((self.s + self.length_m * np.arange(laps)[:, None]).ravel(), 0.0)
-        s_nodes[-1] = laps * self.length_m
-        if abs(t_nodes[-1] - duration_s) < 1e-3 * duration_s:
-            t_nodes = t_nodes * (duration_s / t_nodes[-1])
-        stamps = np.linspace(0.0, duration_s, int(np.ceil(duration_s * SAMPLE_RATE_HZ)) + 1)
-        s = PchipInterpolator(t_nodes, s_nodes)(np.minimum(stamps, t_nodes[-1])) % self.length_m
-        xy, d1 = self.spline(s), self.spline(s, 1)
-        yaw = np.arctan2(d1[:, 1], d1[:, 0])
-        return Trajectory(stamps, np.column_stack([xy, yaw]))
 
 
 class _TourBuilder:
@@ -197,7 +121,7 @@ class _TourBuilder:
             return self.points[seq[0]] + radius * np.stack([np.sin(angles), -np.cos(angles)], -1)
         n = len(seq)
         paths = [self.legs.path(seq[i], seq[(i + 1) % n]) for i in range(n)]
-        cums = [_arc_lengths(p) for p in paths]
+        cums = [arc_lengths(p) for p in paths]
         cut_start, cut_end, loops = [0.0] * n, [0.0] * n, [None] * n
         for i in range(n):
             w = self.points[seq[i]]
@@ -210,7 +134,7 @@ class _TourBuilder:
             sign = 1.0 if turn >= 0 else -1.0
             # Entering is leaving backwards in time, around the circle the other way.
             reverse_in = paths[i - 1][::-1]
-            cut_end[i - 1] = self._tangent_back(reverse_in, _arc_lengths(reverse_in), radius, -sign)
+            cut_end[i - 1] = self._tangent_back(reverse_in, arc_lengths(reverse_in), radius, -sign)
             cut_start[i] = self._tangent_back(paths[i], cums[i], radius, sign)
             a = _point_at(paths[i - 1], cums[i - 1], cums[i - 1][-1] - cut_end[i - 1])
             b = _point_at(paths[i], cums[i], cut_start[i])
@@ -226,7 +150,7 @@ class _TourBuilder:
             inside = (cums[i] > cut_start[i]) & (cums[i] < cums[i][-1] - cut_end[i])
             pieces.append(paths[i][inside])
         poly = np.vstack(pieces)
-        return _resample_closed(poly, _arc_lengths(poly)[anchor])
+        return _resample_closed(poly, arc_lengths(poly)[anchor])
 
     def _tangent_back(self, path: np.ndarray, cum: np.ndarray, radius: float, sign: float):
         """Arc length along ``path`` (leaving a loop's centre) where the loop should rejoin it.
@@ -285,9 +209,9 @@ class _TourBuilder:
         logger.debug("smoothing stopped with curvature or clearance still off")
         return p, clear
 
-    def walk(self, seq: list[int]) -> _Walk:
+    def walk(self, seq: list[int]) -> WalkLoop:
         path, clear = self.smooth(self.polyline(seq))
-        return _Walk(path, self.config, clear)
+        return WalkLoop(path, self.config, clear)
 
 
 def plan_walk(world: World, duration_s: float, seed: int, config: TrajectoryConfig) -> Trajectory:
@@ -306,9 +230,9 @@ def plan_walk(world: World, duration_s: float, seed: int, config: TrajectoryConf
     legs = grid.legs(cells)
     tours = growing_tours(legs.cost, rng)
     builder = _TourBuilder(grid, legs, cells, config)
-    walks: dict[int, _Walk] = {}
+    walks: dict[int, WalkLoop] = {}
 
-    def walk(c: int) -> _Walk:
+    def walk(c: int) -> WalkLoop:
         if c not in walks:
             walks[c] = builder.walk(tour_stops(tours, c))
         return walks[c]
