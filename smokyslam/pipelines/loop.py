@@ -119,7 +119,7 @@ class _Clock:
 class _InOrder:
     """Radar frames and camera results (finished, or still tracking in the worker) in the
     log's order; :meth:`ready` hands out the front of the queue up to the first camera frame
-    still tracking (``block``: everything, waiting for the camera)."""
+    still tracking, waiting for it only while more than ``keep`` items are queued."""
 
     def __init__(self) -> None:
         self._queue: deque[RadarFrame | Future | Tracked] = deque()
@@ -130,11 +130,11 @@ class _InOrder:
     def extend(self, items: Iterable[RadarFrame | Future | Tracked]) -> None:
         self._queue.extend(items)
 
-    def ready(self, block: bool) -> Iterator[RadarFrame | Tracked]:
+    def ready(self, keep: int) -> Iterator[RadarFrame | Tracked]:
         while self._queue:
             item = self._queue[0]
             if isinstance(item, Future):
-                if not (block or item.done()):
+                if not item.done() and len(self._queue) <= keep:
                     return
                 item = item.result()
             self._queue.popleft()
@@ -157,7 +157,7 @@ class RunLoop:
         try:
             for frame in frames:
                 self._read(frame)
-                self._hand_over(block=len(self._order) > MAX_LAG)
+                self._hand_over(keep=MAX_LAG)
             self._finish()
         finally:
             if self.stages.camera is not None:
@@ -180,15 +180,15 @@ class RunLoop:
         if self.stages.radar is not None:
             with self._clock.time("radar"):
                 self._order.extend(self.stages.radar.flush())
-        self._hand_over(block=True)
+        self._hand_over(keep=0)
         if self.stages.camera_steps is not None:
             for step in self.stages.camera_steps.flush():
                 self._camera_step(step)
 
     # ------------------------------------------------------------------ handing over
 
-    def _hand_over(self, block: bool) -> None:
-        for item in self._order.ready(block):
+    def _hand_over(self, keep: int) -> None:
+        for item in self._order.ready(keep):
             if isinstance(item, RadarFrame):
                 self._radar_frame(item)
             else:

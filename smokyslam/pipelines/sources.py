@@ -83,16 +83,6 @@ def build_stages(
     use_camera = source.camera_only or (camera_factors and intrinsics is not None)
     if source.camera_only and intrinsics is None:
         raise TopicError(f"{reader.path}: the log has no camera_info, needed for the camera")
-    camera = None
-    if use_camera:
-        camera = CameraStage(
-            intrinsics,
-            config.camera_odometry,
-            _camera_height_m(extrinsics.T_base_camera),
-            smoke,
-            stride=1 if source.camera_only else config.slam.camera_stride,
-            worker=config.slam.camera_process and not source.camera_only,
-        )
     if source.camera_only:
         primary = Primary("camera", planar_from_camera(extrinsics.T_base_camera), 1.0)
     else:
@@ -110,6 +100,16 @@ def build_stages(
         radar.pose_base_radar if radar is not None else None,
         extrinsics.T_base_camera if visual_map else None,
     )
+    camera = None
+    if use_camera:  # last: it may start a worker process, which the loop stops
+        camera = CameraStage(
+            intrinsics,
+            config.camera_odometry,
+            _camera_height_m(extrinsics.T_base_camera),
+            smoke,
+            stride=1 if source.camera_only else config.slam.camera_stride,
+            worker=config.slam.camera_process and not source.camera_only,
+        )
     recorder.log_rig(extrinsics)
     return Stages(
         smoke=smoke,
