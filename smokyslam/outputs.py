@@ -23,6 +23,8 @@ from smokyslam.mapio import save_map
 from smokyslam.mapping.render import render_map_png
 from smokyslam.types import GroundTruthMap
 
+logger = logging.getLogger(__name__)
+
 METRICS_FILE = "metrics.json"
 CONFIG_FILE = "config.yaml"
 RUN_LOG_FILE = "run.log"
@@ -91,6 +93,8 @@ class OutputFolder:
         self.root.mkdir(parents=True, exist_ok=True)
         self.maps: dict[str, tuple[np.ndarray, GridSpec]] = {}
         """Every map written so far: name -> (trinary cells, grid spec)."""
+        self.empty_maps: list[str] = []
+        """Maps that had no cell at all, so no file."""
         self._log_handler: logging.Handler | None = None
 
     def path(self, *parts: str) -> Path:
@@ -117,8 +121,17 @@ class OutputFolder:
         spec: GridSpec,
         truth: GroundTruthMap | None = None,
         trajectory_xy_m: np.ndarray | None = None,
-    ) -> Path:
-        """``maps/NAME.{pgm,yaml,png}`` and, with ground truth, ``maps/NAME_vs_truth.png``."""
+    ) -> Path | None:
+        """``maps/NAME.{pgm,yaml,png}`` and, with ground truth, ``maps/NAME_vs_truth.png``.
+
+        A map without a single cell (e.g. every radar return lost) is a valid result with no
+        file: it is named in ``metrics.json`` ``empty_maps`` and in ``run.log``; None.
+        """
+        if min(np.shape(cells)) == 0:
+            logger.warning("map %s is empty (nothing was observed): no map file", name)
+            self.empty_maps.append(name)
+            self.update_metrics({"empty_maps": self.empty_maps})
+            return None
         yaml_path = save_map(self.path("maps", f"{name}.yaml"), cells, spec)
         self.maps[name] = (cells, spec)
         if truth is not None or trajectory_xy_m is not None:

@@ -5,9 +5,10 @@ except ``CameraInfo.K`` in ROS1 versus ``k`` in ROS2). Layouts, as :mod:`smokysl
 writes them and as other publishers may:
 
 - radar ``PointCloud2``: decoding goes by the ``fields`` list (name, offset, datatype), so other
-  layouts such as the TI driver's 32-byte points also read. Points with a NaN/inf coordinate,
-  intensity or velocity are dropped and counted; a frame of only such points decodes to an
-  empty scan.
+  layouts such as the TI driver's 32-byte points also read. Points with a NaN/inf coordinate
+  are dropped and counted (a frame of only such points decodes to an empty scan); a NaN/inf
+  velocity is an unknown Doppler (NaN) for that point, a NaN/inf intensity reads 0. A cloud
+  without a velocity field has unknown Doppler (NaN) everywhere.
 - camera ``Image``: mono8/8UC1, rgb8 or bgr8, decoded to grey.
 - depth ``Image``: 16UC1 millimetres (0 = no depth) or 32FC1 metres. It decodes to float32
   metres (NaN where unknown) at the colour image's resolution, upsampled with
@@ -66,11 +67,12 @@ def _point_dtype(msg: Any, names: Iterable[str]) -> np.dtype:
     )
 
 
-def radar_scan_from_pointcloud2(msg: Any, stamp_s: float) -> tuple[RadarScan, int]:
-    """Decode a PointCloud2 into a RadarScan, and the number of non-finite points dropped.
+def radar_scan_from_pointcloud2(msg: Any, stamp_s: float) -> tuple[RadarScan, int, bool]:
+    """Decode a PointCloud2 into a RadarScan; also the number of points dropped for a
+    non-finite coordinate, and whether the cloud has a velocity field.
 
     Fields are found by name in ``msg.fields`` (any offset, datatype, byte order, row padding).
-    x and y are required; z, intensity and velocity default to 0 when absent.
+    x and y are required; z and intensity default to 0 when absent, velocity to NaN (unknown).
     Raises MessageError on a truncated buffer, a missing x/y field or a bad field layout.
     """
     dtype = _point_dtype(msg, RADAR_FIELDS)
@@ -90,23 +92,24 @@ def radar_scan_from_pointcloud2(msg: Any, stamp_s: float) -> tuple[RadarScan, in
         raw = np.lib.stride_tricks.as_strided(raw, (height, width * step), (row_step, 1))
     points = np.ascontiguousarray(raw).reshape(-1).view(dtype)
 
-    def column(name: str) -> np.ndarray:
+    def column(name: str, missing: float) -> np.ndarray:
         if name not in dtype.names:
-            return np.zeros(len(points))
+            return np.full(len(points), missing)
         values = points[name]
         return np.asarray(values[:, 0] if values.ndim > 1 else values, dtype=np.float64)
 
-    xyz = np.stack([column("x"), column("y"), column("z")], axis=1)
-    intensity, doppler = column("intensity"), column("velocity")
-    finite = np.isfinite(xyz).all(axis=1) & np.isfinite(intensity) & np.isfinite(doppler)
+    xyz = np.stack([column("x", 0.0), column("y", 0.0), column("z", 0.0)], axis=1)
+    intensity, doppler = column("intensity", 0.0), column("velocity", np.nan)
+    finite = np.isfinite(xyz).all(axis=1)
+    doppler = np.where(np.isfinite(doppler), doppler, np.nan)
     scan = RadarScan(
         stamp_s=stamp_s,
         points_xyz_m=xyz[finite],
-        intensity=intensity[finite],
+        intensity=np.where(np.isfinite(intensity), intensity, 0.0)[finite],
         doppler_mps=doppler[finite],
         frame_id=msg.header.frame_id or FRAME_RADAR,
     )
-    return scan, int((~finite).sum())
+    return scan, int((~finite).sum()), "velocity" in dtype.names
 
 
 def _image_pixels(msg: Any, dtype: np.dtype, channels: int) -> np.ndarray:
@@ -159,7 +162,7 @@ def depth_from_msg(msg: Any, shape_hw: tuple[int, int]) -> np.ndarray:
 def intrinsics_from_camera_info(msg: Any) -> CameraIntrinsics:
     """Pinhole intrinsics (pixels) from ``CameraInfo.K`` (ROS1) or ``k`` (ROS2)."""
     k = np.asarray(msg.K if hasattr(msg, "K") else msg.k, dtype=float)
-    if k.size != 9 or k[0] <= 0.0 or k[4] <= 0.0:
+    if k.size != 9 or not np.isfinite(k).all() or k[0] <= 0.0 or k[4] <= 0.0:
         raise MessageError(f"CameraInfo has no valid camera matrix (K = {k.tolist()})")
     return CameraIntrinsics(
         width=int(msg.width),
@@ -196,10 +199,17 @@ def ground_truth_pose_from_msg(msg: Any, stamp_s: float) -> GroundTruthPose:
 def ground_truth_map_from_msg(msg: Any, stamp_s: float) -> GroundTruthMap:
     """``cells[iy, ix]`` int8 and grid geometry of a ``nav_msgs/OccupancyGrid``.
 
-    Raises MessageError on a rotated origin or a data length that does not match the size.
+    Raises MessageError on a rotated origin, a resolution or origin that is not a finite
+    positive number, or a data length that does not match the size.
     """
     info = msg.info
     rows, cols = int(info.height), int(info.width)
+    numbers = [info.resolution, info.origin.position.x, info.origin.position.y]
+    if not (np.isfinite(numbers).all() and info.resolution > 0):
+        raise MessageError(
+            f"OccupancyGrid resolution {info.resolution} / origin "
+            f"({info.origin.position.x}, {info.origin.position.y}) is not usable"
+        )
     data = np.asarray(msg.data, dtype=np.int8)
     if data.size != rows * cols:
         raise MessageError(f"OccupancyGrid has {data.size} cells for {cols}x{rows}")
@@ -224,9 +234,17 @@ def extrinsics_from_tf(transforms: Iterable[Any]) -> Extrinsics:
     parent_of: dict[str, tuple[str, np.ndarray]] = {}
     for stamped in transforms:
         t, r = stamped.transform.translation, stamped.transform.rotation
-        q_wxyz = quat_wxyz_from_xyzw(np.array([r.x, r.y, r.z, r.w], dtype=float))
-        T = se3_matrix(np.array([t.x, t.y, t.z]), q_wxyz)
-        parent_of[stamped.child_frame_id.lstrip("/")] = (stamped.header.frame_id.lstrip("/"), T)
+        child, parent = stamped.child_frame_id.lstrip("/"), stamped.header.frame_id.lstrip("/")
+        translation = np.array([t.x, t.y, t.z], dtype=float)
+        q_xyzw = np.array([r.x, r.y, r.z, r.w], dtype=float)
+        norm = float(np.linalg.norm(q_xyzw))
+        if not (np.isfinite(translation).all() and np.isfinite(q_xyzw).all() and norm > 0.5):
+            raise MessageError(
+                f"the static transform {parent} -> {child} cannot be used (translation "
+                f"{translation.tolist()}, quaternion xyzw {q_xyzw.tolist()})"
+            )
+        T = se3_matrix(translation, quat_wxyz_from_xyzw(q_xyzw / norm))
+        parent_of[child] = (parent, T)
 
     def base_from(child: str) -> np.ndarray:
         T, frame, seen = np.eye(4), child, set()

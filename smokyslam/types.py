@@ -18,7 +18,8 @@ class RadarScan:
 
     points_xyz_m: (N, 3) float64, metres, radar frame (x forward, y left, z up).
     intensity: (N,) float64, sensor units (dB-like for TI).
-    doppler_mps: (N,) float64, radial velocity, positive moving away from the sensor.
+    doppler_mps: (N,) float64, radial velocity, positive moving away from the sensor; NaN
+    where unknown (a sensor or log without velocities).
     """
 
     stamp_s: float

@@ -70,10 +70,10 @@ def test_ti_layout_32_byte_points() -> None:
     values = _values(42)
     spec = {"x": ("<f4", 0), "y": ("<f4", 4), "z": ("<f4", 8)}
     spec |= {"intensity": ("<f4", 16), "velocity": ("<f4", 20)}
-    scan, dropped = radar_scan_from_pointcloud2(
+    scan, dropped, has_velocity = radar_scan_from_pointcloud2(
         _cloud(_structured(spec, 32, values), ros1=True), 1.5
     )
-    assert dropped == 0 and len(scan) == 42 and scan.stamp_s == 1.5
+    assert dropped == 0 and has_velocity and len(scan) == 42 and scan.stamp_s == 1.5
     assert scan.frame_id == "radar"  # empty frame_id in the TI driver
     np.testing.assert_array_equal(scan.points_xyz_m[:, 2], values["z"].astype(np.float32))
     np.testing.assert_array_equal(scan.intensity, values["intensity"].astype(np.float32))
@@ -91,7 +91,7 @@ def test_shuffled_mixed_types_big_endian_and_padding() -> None:
         "z": (">f8", 28),
     }
     points = _structured(spec, 44, values)
-    scan, _ = radar_scan_from_pointcloud2(_cloud(points, height=5, row_pad=6), 0.0)
+    scan, _, _ = radar_scan_from_pointcloud2(_cloud(points, height=5, row_pad=6), 0.0)
     assert len(scan) == 25
     np.testing.assert_array_equal(scan.points_xyz_m[:, 0], values["x"].astype(np.float32))
     np.testing.assert_array_equal(scan.points_xyz_m[:, 1], values["y"].astype(np.float32))
@@ -100,13 +100,13 @@ def test_shuffled_mixed_types_big_endian_and_padding() -> None:
     np.testing.assert_array_equal(scan.doppler_mps, values["velocity"])
 
 
-def test_missing_optional_fields_read_as_zero() -> None:
+def test_missing_optional_fields_read_as_zero_and_no_velocity_as_unknown() -> None:
     values = _values(4)
     spec = {"x": ("<f4", 4), "y": ("<f4", 8)}
-    scan, _ = radar_scan_from_pointcloud2(_cloud(_structured(spec, 16, values)), 0.0)
+    scan, _, has_velocity = radar_scan_from_pointcloud2(_cloud(_structured(spec, 16, values)), 0.0)
     np.testing.assert_array_equal(scan.points_xyz_m[:, 1], values["y"].astype(np.float32))
     assert not scan.points_xyz_m[:, 2].any() and not scan.intensity.any()
-    assert not scan.doppler_mps.any()
+    assert not has_velocity and np.isnan(scan.doppler_mps).all()
 
 
 def test_truncated_cloud_is_reported() -> None:
@@ -134,13 +134,16 @@ def test_non_finite_points_are_dropped_and_counted() -> None:
     values = _values(6)
     values["x"][1] = np.nan
     values["z"][3] = np.inf
-    values["velocity"][4] = np.nan
+    values["velocity"][4] = np.nan  # the point stays; its Doppler is unknown
+    values["intensity"][5] = np.inf
     spec = {name: ("<f4", 4 * i) for i, name in enumerate(values)}
-    scan, dropped = radar_scan_from_pointcloud2(_cloud(_structured(spec, 20, values)), 0.0)
-    assert dropped == 3 and len(scan) == 3
-    np.testing.assert_array_equal(scan.points_xyz_m[:, 0], values["x"][[0, 2, 5]].astype("f4"))
+    scan, dropped, _ = radar_scan_from_pointcloud2(_cloud(_structured(spec, 20, values)), 0.0)
+    assert dropped == 2 and len(scan) == 4
+    np.testing.assert_array_equal(scan.points_xyz_m[:, 0], values["x"][[0, 2, 4, 5]].astype("f4"))
+    assert np.isnan(scan.doppler_mps[2]) and np.isfinite(scan.doppler_mps[[0, 1, 3]]).all()
+    assert scan.intensity[3] == 0.0
     all_nan = {name: np.full(5, np.nan) for name in values}
-    empty, dropped = radar_scan_from_pointcloud2(_cloud(_structured(spec, 20, all_nan)), 0.0)
+    empty, dropped, _ = radar_scan_from_pointcloud2(_cloud(_structured(spec, 20, all_nan)), 0.0)
     assert dropped == 5 and len(empty) == 0 and empty.points_xyz_m.shape == (0, 3)
 
 
@@ -156,6 +159,6 @@ def test_reader_counts_dropped_points_and_warns_once(
     reader = RosbagReader(path, TopicsConfig())
     with caplog.at_level(logging.WARNING):
         sizes = [len(scan) for scan in reader.frames()]
-    assert sizes == [3, 2, 1] and reader.dropped_points == 6
+    assert sizes == [3, 2, 1] and reader.checks.counts["radar_points_nonfinite"] == 6
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert len(warnings) == 1 and "dropped 6 radar points with NaN/inf" in warnings[0]
+    assert len(warnings) == 1 and "6 radar points with NaN/inf coordinates dropped" in warnings[0]

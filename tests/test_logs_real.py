@@ -21,7 +21,7 @@ def ti_frames(real_data_dir: Path) -> tuple:
 def test_ti_radar_scans(ti_frames: tuple) -> None:
     reader, frames = ti_frames
     scans = [f for f in frames if isinstance(f, RadarScan)]
-    assert len(scans) == 412 and reader.dropped_points == 0
+    assert len(scans) == 412 and reader.checks.counts["radar_points_nonfinite"] == 0
     sizes = np.array([len(s) for s in scans])
     assert 38 < sizes.mean() < 48 and sizes.min() >= 10
     points = np.concatenate([s.points_xyz_m for s in scans])

@@ -35,8 +35,18 @@ class EgoVelocity:
     valid: bool = True
 
 
+ENUMERATED_PAIRS = 20_000
+"""Up to this many point pairs, every pair is listed and the hypotheses drawn among them;
+beyond it pairs are drawn directly (memory stays linear in the points)."""
+
+
 def _pair_indices(n: int, max_hypotheses: int, rng: np.random.Generator) -> np.ndarray:
     """(H, 2) point pairs: all of them when few enough, else a random subset."""
+    if n * (n - 1) // 2 > ENUMERATED_PAIRS:
+        drawn = np.sort(rng.integers(0, n, size=(2 * max_hypotheses, 2)), axis=1)
+        drawn = drawn[drawn[:, 0] != drawn[:, 1]]
+        _, first = np.unique(drawn, axis=0, return_index=True)  # distinct, in drawn order
+        return drawn[np.sort(first)][:max_hypotheses]
     i, j = np.triu_indices(n, k=1)
     pairs = np.stack([i, j], axis=1)
     if len(pairs) > max_hypotheses:
@@ -66,13 +76,29 @@ def estimate_ego_velocity(
     """Estimate the sensor's planar velocity from (N,) bearings (rad, radar frame) and (N,)
     Doppler speeds (m/s, positive away), assuming most points are static.
 
-    Every 2-point hypothesis (or ``max_hypotheses`` random ones) is solved and scored at once;
+    Points whose Doppler is unknown (NaN) take no part. Every 2-point hypothesis (or
+    ``max_hypotheses`` random ones) is solved and scored at once;
     the best one's inliers (|residual| < ``inlier_threshold_mps``) are refit by least squares
     twice. The covariance is ``sigma^2 (A^T A)^-1`` with sigma from the inlier residuals,
     at least ``min_sigma_mps``.
     """
     bearings = np.asarray(bearings_rad, dtype=float).ravel()
     doppler = np.asarray(doppler_mps, dtype=float).ravel()
+    known = np.isfinite(doppler) & np.isfinite(bearings)
+    if not known.all():  # unknown Doppler (NaN): estimate on the others, mask over all
+        estimate = estimate_ego_velocity(
+            bearings[known],
+            doppler[known],
+            inlier_threshold_mps,
+            max_hypotheses,
+            min_inliers,
+            min_sigma_mps,
+            seed,
+        )
+        mask = np.zeros(bearings.size, dtype=bool)
+        mask[known] = estimate.inlier_mask
+        estimate.inlier_mask = mask
+        return estimate
     n = bearings.size
     directions = np.stack([np.cos(bearings), np.sin(bearings)], axis=1)
     if n < max(min_inliers, 2):

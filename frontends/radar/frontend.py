@@ -3,10 +3,15 @@
 Scans are levelled (rotated through ``T_base_radar`` into the radar's position and heading
 with z up), so a tilted or upside-down radar turns the same way as the gyro; everything
 downstream (keyframe submaps, maps, the recording) uses the levelled scan it hands out.
+
+A scan of more than ``max_points`` points (a dense frame of a real sensor) is thinned first,
+so every stage's work per scan stays bounded: one point per 5 cm cell, then an even random
+subset seeded by the scan's stamp (the same frame always thins the same way).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
@@ -36,8 +41,13 @@ class RadarFrontend:
     """One verb per frame: :meth:`add_imu` per IMU sample, :meth:`register` per radar scan
     (the frames odometry finished, in order); :meth:`flush` at the end of the log."""
 
-    def __init__(self, odometry: RadarOdometry | DeadReckoning, T_base_radar: np.ndarray):
+    def __init__(
+        self, odometry: RadarOdometry | DeadReckoning, T_base_radar: np.ndarray, max_points: int
+    ):
         self._odometry = odometry
+        self._max_points = max_points
+        self.thinned = 0
+        """Scans thinned to ``max_points``."""
         self._T_base_radar = np.asarray(T_base_radar, dtype=float)
         self._imu: list[ImuSample] = []
         self._waiting: deque[RadarScan] = deque()
@@ -49,6 +59,9 @@ class RadarFrontend:
 
     def register(self, scan: RadarScan) -> list[RadarFrame]:
         """Level ``scan`` and register it with the IMU samples since the previous scan."""
+        if len(scan) > self._max_points:
+            scan = thin_scan(scan, self._max_points)
+            self.thinned += 1
         levelled, _ = level_scan(scan, self._T_base_radar)
         self._waiting.append(levelled)
         finished = self._odometry.register(levelled, self._imu)
@@ -68,9 +81,30 @@ class RadarFrontend:
         return [RadarFrame(odometry, self._waiting.popleft()) for odometry in finished]
 
 
+THIN_CELL_M = 0.05
+"""Cell side of the first thinning step of a dense scan: one point per cell."""
+
+
+def thin_scan(scan: RadarScan, max_points: int) -> RadarScan:
+    """``scan`` with at most ``max_points`` points: the first point of each 5 cm cell (in
+    3D), then an even random subset seeded by the stamp."""
+    cells = np.floor(scan.points_xyz_m / THIN_CELL_M).astype(np.int64)
+    _, keep = np.unique(cells, axis=0, return_index=True)
+    if len(keep) > max_points:
+        rng = np.random.default_rng(round(scan.stamp_s * 1e9) % 2**63)
+        keep = rng.choice(keep, size=max_points, replace=False)
+    keep = np.sort(keep)
+    return dataclasses.replace(
+        scan,
+        points_xyz_m=scan.points_xyz_m[keep],
+        intensity=scan.intensity[keep],
+        doppler_mps=scan.doppler_mps[keep],
+    )
+
+
 def get_radar_frontend(
     kind: RadarKind, config: RadarOdometryConfig, T_base_radar: np.ndarray
 ) -> RadarFrontend:
     """Scan-matching radar odometry or Doppler/gyro dead reckoning, as configured."""
     odometry = DeadReckoning(config) if kind == "dead-reckoning" else RadarOdometry(config)
-    return RadarFrontend(odometry, T_base_radar)
+    return RadarFrontend(odometry, T_base_radar, config.max_points)

@@ -27,7 +27,7 @@ class MotionPrior:
 
     delta: (3,) [x_m, y_m, yaw_rad] in the earlier frame's sensor frame.
     covariance: (3, 3) of this step alone, in the same order (what dead reckoning reports).
-    doppler: the ego-velocity estimate it came from.
+    doppler: the ego-velocity estimate it came from. dt_s: the frame interval it covers.
     match_covariance: (3, 3) prior covariance for scan matching: the yaw variance is the
     heading filter's, which also carries the previous frame's yaw uncertainty.
     """
@@ -36,6 +36,7 @@ class MotionPrior:
     covariance: np.ndarray
     doppler: EgoVelocity
     match_covariance: np.ndarray | None = None
+    dt_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.match_covariance is None:
@@ -148,6 +149,7 @@ class MotionPriorEstimator:
         self._gyro = GyroIntegrator()
         self._last_stamp_s: float | None = None
         self._last_velocity = np.zeros(2)
+        self._registered_velocity = False  # _last_velocity came from scan matching
         self.heading = HeadingFilter(
             np.radians(config.yaw_rate_sigma_degps),
             np.radians(config.gyro_bias_sigma_degps),
@@ -170,10 +172,13 @@ class MotionPriorEstimator:
         yaw_delta = self._gyro.integrate(imu, scan.stamp_s if previous is None else previous)
         if previous is None:
             return MotionPrior(np.zeros(3), np.diag([1e-6, 1e-6, 1e-6]), doppler)
-        dt_s = max(scan.stamp_s - previous, 1e-6)
+        dt_s = min(max(scan.stamp_s - previous, 1e-6), config.max_step_s)  # a gap: capped
         velocity_cov = doppler.covariance
         if doppler.valid:
             self._last_velocity = doppler.velocity_mps
+            self._registered_velocity = False
+        elif self._registered_velocity:  # no Doppler: coast on what scan matching found
+            velocity_cov = np.eye(2) * config.coast_sigma_mps**2
         else:
             # Coast on the last velocity, with the uncertainty of not knowing it at all.
             velocity_cov = np.eye(2) * max(1.0, float(self._last_velocity @ self._last_velocity))
@@ -197,7 +202,16 @@ class MotionPriorEstimator:
             J @ twist_cov @ J.T,
             doppler,
             J @ anchored_cov @ J.T,
+            dt_s,
         )
+
+    def registered(self, prior: MotionPrior, registered_delta: np.ndarray) -> None:
+        """A frame's step as scan matching registered it: without Doppler, its velocity is
+        what the next frames coast on."""
+        if prior.doppler.valid or prior.dt_s <= 0.0:
+            return
+        self._last_velocity = np.asarray(registered_delta[:2], dtype=float) / prior.dt_s
+        self._registered_velocity = True
 
     def correct_heading(
         self, prior: MotionPrior, registered_delta: np.ndarray, covariance: np.ndarray

@@ -118,9 +118,10 @@ class RadarOdometry:
             [p.points_xy for p in batch], self.pose, [p.prior for p in batch]
         )
         self.pose = results[-1].pose_world_sensor.copy()
-        if self._heading_feedback:
-            for pending, result in zip(batch, results, strict=True):
-                if result.matched and result.inliers > 0:
+        for pending, result in zip(batch, results, strict=True):
+            if result.matched and result.inliers > 0:
+                self._prior.registered(pending.prior, result.delta)
+                if self._heading_feedback:
                     self._prior.correct_heading(pending.prior, result.delta, result.covariance)
         return [_odometry(p, r) for p, r in zip(batch, results, strict=True)]
 

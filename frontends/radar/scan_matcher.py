@@ -196,9 +196,10 @@ class JointIcpMatcher:
             delta = _delta(poses[b], poses[b + 1])
             delta[2] = wrap_angle(delta[2])
             if not usable or len(points) == 0:
-                results.append(
-                    MatchResult(poses[b + 1], delta, prior.covariance, 0, np.nan, not usable)
-                )
+                # Before the map can be matched, a frame with points seeds it (not lost); a
+                # frame without points measured nothing either way.
+                seeds = not usable and len(points) > 0
+                results.append(MatchResult(poses[b + 1], delta, prior.covariance, 0, np.nan, seeds))
                 continue
             terms = self._point_terms(points, poses[b + 1], lines[b], self._floor_var(prior))
             inlier = terms.matched & (np.abs(terms.residual) < 3.0 * config.robust_kernel)

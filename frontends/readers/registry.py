@@ -35,7 +35,7 @@ _CARMEN_STREAMS = frozenset({"radar", "imu", "ground_truth_pose"})
 def _open_rosbag(path: Path, config: SmokySlamConfig, require: Sequence[str]) -> LogReader:
     calibration = config.rig.calibration
     extrinsics = extrinsics_from_calibration(calibration) if calibration else None
-    reader = RosbagReader(path, config.topics, extrinsics)
+    reader = RosbagReader(path, config.topics, extrinsics, config.log.max_gap_s)
     reader.require(*require)
     return reader
 

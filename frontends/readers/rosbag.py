@@ -9,16 +9,14 @@ logs mix clocks (the TI radar driver leaves them at 0; the IMU of the demo bag r
 the bag clock). smokyslam's own logs write header stamp = log time, so nothing is lost.
 
 Camera: images carry the intrinsics of the latest ``CameraInfo`` (the first one in the log
-before any arrives). When the log has a depth topic, each image waits (up to
-``DEPTH_WAIT_S`` of log time) for the depth image with the same header stamp (within
-``DEPTH_MATCH_S``); frames behind a waiting image are held back so the output stays in time
-order. Messages are decoded one at a time as the log is read.
+before any arrives) and are paired with their depth images (``camera_pairing.py``). Messages
+are decoded one at a time as the log is read; what cannot be used (NaN samples, images of the
+wrong size) is dropped and counted at this boundary (``checks.py``), and time jumps reported.
 """
 
 from __future__ import annotations
 
 import logging
-from collections import deque
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -32,19 +30,18 @@ from rosbags.rosbag2 import ReaderError as ReaderError2
 from smokyslam.config import TopicsConfig
 from smokyslam.errors import LogError, MessageError, TopicError
 from smokyslam.frontends.readers.base import SENSOR_STREAMS, LogSummary, StreamSummary
+from smokyslam.frontends.readers.camera_pairing import FrameAssembler
+from smokyslam.frontends.readers.checks import StreamChecks
 from smokyslam.rosmsg import STREAM_MSGTYPES, header_stamp_ns, typestore_for
 from smokyslam.rosmsg_decode import (
-    depth_from_msg,
     extrinsics_from_tf,
     ground_truth_map_from_msg,
     ground_truth_pose_from_msg,
-    image_from_msg,
     imu_from_msg,
     intrinsics_from_camera_info,
     radar_scan_from_pointcloud2,
 )
 from smokyslam.types import (
-    CameraFrame,
     CameraIntrinsics,
     Extrinsics,
     Frame,
@@ -53,11 +50,6 @@ from smokyslam.types import (
 )
 
 logger = logging.getLogger(__name__)
-
-DEPTH_WAIT_S = 0.1
-"""Log time an image waits for its depth image before it is released without depth."""
-DEPTH_MATCH_S = 0.001
-"""Largest header-stamp difference between an image and the depth image paired with it."""
 
 _READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
 _NS = 1e-9
@@ -75,10 +67,15 @@ class RosbagReader:
     """A ROS1/ROS2 log opened for replay (see the module docstring for time and pairing)."""
 
     def __init__(
-        self, path: Path | str, topics: TopicsConfig, extrinsics: Extrinsics | None = None
+        self,
+        path: Path | str,
+        topics: TopicsConfig,
+        extrinsics: Extrinsics | None = None,
+        max_gap_s: float | None = None,
     ) -> None:
         """``extrinsics``: the sensor mounting to report instead of the log's /tf_static
-        (e.g. from a radar calibration YAML)."""
+        (e.g. from a radar calibration YAML). ``max_gap_s``: log-time jumps within a stream
+        longer than this are reported (``log.max_gap_s``; None: not checked)."""
         self.path = Path(path)
         self.topics = topics
         self._extrinsics = extrinsics
@@ -86,7 +83,9 @@ class RosbagReader:
         with self._open() as reader:
             self._log_types = {name: info.msgtype or "?" for name, info in reader.topics.items()}
         self.stream_topics = self._resolve_streams()
-        self.dropped_points = 0
+        self.max_gap_s = max_gap_s
+        self.checks: StreamChecks | None = None
+        """The checks of the latest ``frames()`` pass (what was dropped, time anomalies)."""
         self._intrinsics: CameraIntrinsics | None = None
         self._intrinsics_read = False
 
@@ -191,18 +190,27 @@ class RosbagReader:
         transforms = [t for _, _, msg in self._messages("tf_static") for t in msg.transforms]
         if not transforms:
             logger.info("%s: no static transforms; sensors taken at base_link", self.path)
-        return extrinsics_from_tf(transforms)
+        try:
+            return extrinsics_from_tf(transforms)
+        except MessageError as exc:
+            raise MessageError(f"{self.path}: /tf_static: {exc}") from None
 
     def ground_truth_map(self) -> GroundTruthMap | None:
-        """The last ground-truth OccupancyGrid in the log, or None."""
+        """The last usable ground-truth OccupancyGrid in the log, or None (an unusable one, e.g.
+        with a NaN resolution, is left out with a warning)."""
         latest = None
         for _, stamp_s, msg in self._messages("ground_truth_map"):
-            latest = (stamp_s, msg)
-        return None if latest is None else ground_truth_map_from_msg(latest[1], latest[0])
+            try:
+                latest = ground_truth_map_from_msg(msg, stamp_s)
+            except MessageError as exc:
+                logger.warning(
+                    "%s: ground-truth map at %.2f s left out: %s", self.path, stamp_s, exc
+                )
+        return latest
 
     def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
-        """Every ground-truth pose of the log, sorted by stamp (repeated stamps kept once),
-        or None when it has none."""
+        """Every finite ground-truth pose of the log, sorted by stamp (repeated stamps kept
+        once), or None when it has none; non-finite poses are dropped with a warning."""
         stamps, poses = [], []
         for _, stamp_s, msg in self._messages("ground_truth_pose"):
             pose = ground_truth_pose_from_msg(msg, stamp_s)
@@ -210,8 +218,16 @@ class RosbagReader:
             poses.append(pose.pose_world_base)
         if not stamps:
             return None
-        stamps_s, first = np.unique(np.asarray(stamps, dtype=float), return_index=True)
-        return GroundTruthTrajectory(stamps_s, np.asarray(poses, dtype=float)[first])
+        poses_array = np.asarray(poses, dtype=float).reshape(-1, 3)
+        finite = np.isfinite(poses_array).all(axis=1)
+        if not finite.all():
+            logger.warning(
+                "%s: %d ground-truth poses with NaN/inf values dropped", self.path, (~finite).sum()
+            )
+        if not finite.any():
+            return None
+        stamps_s, first = np.unique(np.asarray(stamps, dtype=float)[finite], return_index=True)
+        return GroundTruthTrajectory(stamps_s, poses_array[finite][first])
 
     def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
         """Radar, camera (with intrinsics and paired depth) and IMU frames; ``streams``: only
@@ -226,75 +242,36 @@ class RosbagReader:
         has_depth = "camera_depth" in wanted and "camera_depth" in self.stream_topics
         if not has_depth:
             wanted.discard("camera_depth")
-        assembler = _FrameAssembler(self.camera_intrinsics(), has_depth)
-        dropped_before = self.dropped_points
+        assembler = FrameAssembler(self.camera_intrinsics(), has_depth)
+        checks = StreamChecks(self.path, self.max_gap_s)
+        self.checks = checks
         streams = [s for s in STREAM_MSGTYPES if s in wanted]
         for stream, stamp_s, msg in self._messages(*streams):
+            topic = self.stream_topics[stream]
+            checks.time(topic, stamp_s, header_stamp_ns(msg) * _NS)
             try:
-                self._dispatch(assembler, stream, stamp_s, msg)
+                self._dispatch(assembler, checks, stream, stamp_s, msg)
             except MessageError as exc:
-                topic = self.stream_topics[stream]
                 raise MessageError(f"{self.path}: {topic} at {stamp_s:.3f} s: {exc}") from None
             yield from assembler.release(stamp_s)
         yield from assembler.release(float("inf"))
-        if dropped := self.dropped_points - dropped_before:
-            logger.warning("%s: dropped %d radar points with NaN/inf values", self.path, dropped)
+        checks.report()
 
-    def _dispatch(self, assembler: _FrameAssembler, stream: str, stamp_s: float, msg: Any) -> None:
+    def _dispatch(
+        self,
+        assembler: FrameAssembler,
+        checks: StreamChecks,
+        stream: str,
+        stamp_s: float,
+        msg: Any,
+    ) -> None:
         if stream == "radar":
-            scan, dropped = radar_scan_from_pointcloud2(msg, stamp_s)
-            self.dropped_points += dropped
-            assembler.push(scan)
+            assembler.push(checks.radar(*radar_scan_from_pointcloud2(msg, stamp_s)))
         elif stream == "camera_info":
             assembler.intrinsics = intrinsics_from_camera_info(msg)
         elif stream == "camera_image":
-            assembler.push_image(msg, stamp_s)
+            assembler.push_image(msg, stamp_s, checks)
         elif stream == "camera_depth":
             assembler.push_depth(msg, stamp_s)
-        else:
-            assembler.push(imu_from_msg(msg, stamp_s))
-
-
-class _FrameAssembler:
-    """Keeps frames in log order while camera images wait for their depth images."""
-
-    def __init__(self, intrinsics: CameraIntrinsics | None, has_depth: bool) -> None:
-        self.intrinsics = intrinsics
-        self.has_depth = has_depth
-        self._queue: deque[Frame] = deque()
-        # id(frame) -> (frame, header stamp ns, release time s) of images waiting for depth
-        self._waiting: dict[int, tuple[CameraFrame, int, float]] = {}
-        self._early_depths: list[tuple[int, float, Any]] = []
-
-    def push(self, frame: Frame) -> None:
-        self._queue.append(frame)
-
-    def push_image(self, msg: Any, stamp_s: float) -> None:
-        frame = CameraFrame(stamp_s=stamp_s, image=image_from_msg(msg), intrinsics=self.intrinsics)
-        key = header_stamp_ns(msg) or round(stamp_s * 1e9)
-        self._queue.append(frame)
-        for i, (depth_key, _, depth_msg) in enumerate(self._early_depths):
-            if abs(depth_key - key) <= DEPTH_MATCH_S * 1e9:
-                frame.depth_m = depth_from_msg(depth_msg, frame.image.shape)
-                del self._early_depths[i]
-                return
-        if self.has_depth:
-            self._waiting[id(frame)] = (frame, key, stamp_s + DEPTH_WAIT_S)
-
-    def push_depth(self, msg: Any, stamp_s: float) -> None:
-        key = header_stamp_ns(msg) or round(stamp_s * 1e9)
-        for frame_id, (frame, image_key, _) in self._waiting.items():
-            if abs(image_key - key) <= DEPTH_MATCH_S * 1e9:
-                frame.depth_m = depth_from_msg(msg, frame.image.shape)
-                del self._waiting[frame_id]
-                return
-        self._early_depths.append((key, stamp_s, msg))
-
-    def release(self, now_s: float) -> Iterator[Frame]:
-        """Frames that no longer wait for anything, in order, as of log time ``now_s``."""
-        for frame_id, (_, _, deadline_s) in list(self._waiting.items()):
-            if deadline_s < now_s:
-                del self._waiting[frame_id]
-        self._early_depths = [d for d in self._early_depths if d[1] + DEPTH_WAIT_S >= now_s]
-        while self._queue and id(self._queue[0]) not in self._waiting:
-            yield self._queue.popleft()
+        elif (sample := checks.imu(imu_from_msg(msg, stamp_s))) is not None:
+            assembler.push(sample)

@@ -30,6 +30,7 @@ from smokyslam.config.sensors import (
     CameraModelConfig,
     CarmenConfig,
     ImuModelConfig,
+    LogConfig,
     RadarModelConfig,
     RigConfig,
     SimulationConfig,
@@ -47,6 +48,7 @@ __all__ = [
     "CarmenConfig",
     "ImuModelConfig",
     "KeyframeConfig",
+    "LogConfig",
     "LoopClosureConfig",
     "MappingConfig",
     "RadarModelConfig",
@@ -70,6 +72,7 @@ class SmokySlamConfig(Section):
     """Root configuration."""
 
     topics: TopicsConfig = TopicsConfig()
+    log: LogConfig = LogConfig()
     smoke: SmokeConfig = SmokeConfig()
     rig: RigConfig = RigConfig()
     simulation: SimulationConfig = SimulationConfig()

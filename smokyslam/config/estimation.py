@@ -43,6 +43,22 @@ class RadarOdometryConfig(_Section):
     kiss_initial_threshold_m: float = Field(0.5, gt=0.0, description="adaptive threshold start")
     joint_batch_frames: int = Field(1, ge=1, description="joint-icp: frames solved together")
     kiss_batch_frames: int = Field(3, ge=1, description="kiss-icp: frames stitched per batch")
+    max_points: int = Field(
+        2000,
+        ge=10,
+        description="a scan with more points is thinned to this many (one per 5 cm cell, then "
+        "evenly at random, seeded by its stamp) before odometry and mapping",
+    )
+    max_step_s: float = Field(
+        2.0,
+        gt=0.0,
+        description="frames further apart (a gap in the log) are predicted as this far apart",
+    )
+    coast_sigma_mps: float = Field(
+        0.3,
+        gt=0.0,
+        description="without Doppler, the velocity sigma of coasting on the registered one",
+    )
 
 
 class KeyframeConfig(_Section):

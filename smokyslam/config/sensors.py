@@ -22,6 +22,14 @@ class TopicsConfig(_Section):
     tf_static: list[str] = Field(default_factory=lambda: ["/tf_static"])
 
 
+class LogConfig(_Section):
+    """How logs are read."""
+
+    max_gap_s: float = Field(
+        1.0, gt=0.0, description="a stream's log time jumping more than this is reported"
+    )
+
+
 class SmokeConfig(_Section):
     """Smoke emulated at replay time (seeded, so one log serves every level)."""
 

@@ -72,8 +72,7 @@ def write_maps(
     scored = gt_map is not None and evaluation.trajectory is not None
     for name, grid in estimate.maps.render(evaluation.pose_truth_map).items():
         cells = grid.to_cells()
-        out.write_map(name, cells, grid.spec, gt_map, path_xy)
-        if scored:
+        if out.write_map(name, cells, grid.spec, gt_map, path_xy) is not None and scored:
             out.update_metrics({"maps": {name: map_scores(cells, grid.spec, gt_map)}})
 
 

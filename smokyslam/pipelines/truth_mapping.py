@@ -50,12 +50,14 @@ def run_truth_mapping(
         grid = build_radar_map(frames, truth, reader.extrinsics(), config.mapping, gate)
         cells = grid.to_cells()
         gt_map = reader.ground_truth_map()
-        out.write_map("radar_sparse", cells, grid.spec, gt_map, truth.poses_world_base[:, :2])
+        written = out.write_map(
+            "radar_sparse", cells, grid.spec, gt_map, truth.poses_world_base[:, :2]
+        )
         metrics = {}
-        if gt_map is not None:
-            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map)}}
-        else:
+        if gt_map is None:
             logger.warning("%s has no ground-truth map: no map metrics", log_path)
+        elif written is not None:
+            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map)}}
         wall_s = time.perf_counter() - started
         out.update_metrics({**metrics, "wall_s": wall_s})
         return TruthMappingResult(grid, metrics, wall_s, out.root)
