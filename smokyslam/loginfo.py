@@ -27,4 +27,6 @@ def format_summary(summary: LogSummary) -> str:
     ]
     if not summary.streams:
         lines.append("(no topics)")
+    if summary.damage:
+        lines += ["", summary.damage]
     return "\n".join([*header, "", *lines]) + "\n"

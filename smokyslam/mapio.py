@@ -7,6 +7,7 @@ of the map, so rows are flipped against smokyslam's ``[iy, ix]`` arrays (iy grow
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,11 +94,13 @@ def _read_description(yaml_path: Path) -> dict:
         if key not in description:
             raise MapFileError(f"{yaml_path}: missing key '{key}'")
     resolution = description["resolution"]
-    if not isinstance(resolution, int | float) or not resolution > 0:
+    if not isinstance(resolution, int | float) or not 0 < resolution < math.inf:
         raise MapFileError(f"{yaml_path}: resolution must be a positive number, got {resolution!r}")
     origin = description["origin"]
     if not isinstance(origin, list) or len(origin) < 2:
         raise MapFileError(f"{yaml_path}: origin must be [x, y, yaw], got {origin!r}")
+    if not all(isinstance(v, int | float) and math.isfinite(v) for v in origin):
+        raise MapFileError(f"{yaml_path}: origin must be finite numbers, got {origin!r}")
     if len(origin) > 2 and origin[2] not in (0, 0.0):
         raise MapFileError(f"{yaml_path}: rotated map origins (yaw != 0) are not supported")
     return description

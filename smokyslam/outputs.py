@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
 import numpy as np
 
 from smokyslam.config import SmokySlamConfig, deep_update, write_config
-from smokyslam.errors import OutputError
+from smokyslam.errors import OutputError, SmokySlamError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import save_map
 from smokyslam.mapping.render import render_map_png
@@ -54,6 +56,34 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+def writable_folder(root: Path | str, option: str = "--out") -> Path:
+    """``root`` created if needed and checked writable before any work starts; OutputError
+    (one line naming ``option``) for a file in the way or a place that cannot be written."""
+    root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise OutputError(f"{option} {root}: exists and is not a folder")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        probe = root / f".smokyslam-write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"{option} {root}: cannot write there ({exc.strerror or exc})") from None
+    return root
+
+
+def writable_file(path: Path | str, option: str) -> Path:
+    """``path`` checked as a file that can be written (its folder created if needed) before
+    any work starts; an existing file is left as it is. OutputError naming ``option``."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{option} {path}: is a folder, not a file")
+    writable_folder(path.parent if str(path.parent) else Path("."), option)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise OutputError(f"{option} {path}: cannot be written (no permission)")
+    return path
+
+
 def claim_folder(
     root: Path,
     overwrite: bool,
@@ -63,8 +93,7 @@ def claim_folder(
     """Make ``root`` ready for new outputs. If it holds any of ``markers`` (default: any of
     ``outputs``), an earlier run is there: refuse it (OutputError) unless ``overwrite``, which
     removes every one of ``outputs`` first. Nothing else in the folder is touched."""
-    if root.exists() and not root.is_dir():
-        raise OutputError(f"--out {root}: exists and is not a folder")
+    writable_folder(root)
     found = [name for name in (markers or outputs) if (root / name).exists()]
     if not found:
         return
@@ -90,7 +119,7 @@ class OutputFolder:
         self.root = Path(root)
         if overwrite is not None:
             claim_folder(self.root, overwrite)
-        self.root.mkdir(parents=True, exist_ok=True)
+        writable_folder(self.root)
         self.maps: dict[str, tuple[np.ndarray, GridSpec]] = {}
         """Every map written so far: name -> (trinary cells, grid spec)."""
         self.empty_maps: list[str] = []
@@ -160,5 +189,24 @@ class OutputFolder:
         self.start_run_log()
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        """Close the run log; a run that failed leaves its error in it (the console gets its
+        one line from the command, not a second one from here)."""
+        if exc is not None and self._log_handler is not None:
+            if isinstance(exc, SmokySlamError):
+                message, info = f"run failed: {exc}", None
+            elif isinstance(exc, KeyboardInterrupt):
+                message, info = "run interrupted", None
+            else:
+                message, info = (
+                    f"run failed: {type(exc).__name__}: {exc}",
+                    (exc_type, exc, traceback),
+                )
+            record = logger.makeRecord(logger.name, logging.ERROR, __file__, 0, message, (), info)
+            self._log_handler.handle(record)
         self.close()

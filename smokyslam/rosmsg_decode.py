@@ -19,8 +19,9 @@ writes them and as other publishers may:
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from typing import Any
+import functools
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -36,6 +37,25 @@ from smokyslam.types import (
     ImuSample,
     RadarScan,
 )
+
+T = TypeVar("T")
+
+
+def _malformed_is_a_message_error(decode: Callable[..., T]) -> Callable[..., T]:
+    """A decoder whose message lacks a field or holds nonsense (a damaged log's message
+    definitions, absurd sizes) raises MessageError, never AttributeError and the like."""
+
+    @functools.wraps(decode)
+    def checked(*args: Any, **kwargs: Any) -> T:
+        try:
+            return decode(*args, **kwargs)
+        except MessageError:
+            raise
+        except (AttributeError, TypeError, ValueError, IndexError, KeyError, OverflowError) as exc:
+            raise MessageError(f"malformed message ({type(exc).__name__}: {exc})") from None
+
+    return checked
+
 
 # sensor_msgs/PointField datatype codes -> numpy kinds (byte order added per message).
 _POINTFIELD_KINDS = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
@@ -67,6 +87,7 @@ def _point_dtype(msg: Any, names: Iterable[str]) -> np.dtype:
     )
 
 
+@_malformed_is_a_message_error
 def radar_scan_from_pointcloud2(msg: Any, stamp_s: float) -> tuple[RadarScan, int, bool]:
     """Decode a PointCloud2 into a RadarScan; also the number of points dropped for a
     non-finite coordinate, and whether the cloud has a velocity field.
@@ -127,6 +148,7 @@ def _image_pixels(msg: Any, dtype: np.dtype, channels: int) -> np.ndarray:
     return pixels.reshape(shape)
 
 
+@_malformed_is_a_message_error
 def image_from_msg(msg: Any) -> np.ndarray:
     """(H, W) uint8 grey image of a mono8/8UC1, rgb8 or bgr8 ``sensor_msgs/Image``."""
     encoding = msg.encoding.lower()
@@ -138,6 +160,7 @@ def image_from_msg(msg: Any) -> np.ndarray:
     raise MessageError(f"unsupported camera image encoding '{msg.encoding}' (mono8, rgb8, bgr8)")
 
 
+@_malformed_is_a_message_error
 def depth_from_msg(msg: Any, shape_hw: tuple[int, int]) -> np.ndarray:
     """(H, W) float32 depth in metres (NaN where unknown) at ``shape_hw``.
 
@@ -159,6 +182,7 @@ def depth_from_msg(msg: Any, shape_hw: tuple[int, int]) -> np.ndarray:
     return depth_m
 
 
+@_malformed_is_a_message_error
 def intrinsics_from_camera_info(msg: Any) -> CameraIntrinsics:
     """Pinhole intrinsics (pixels) from ``CameraInfo.K`` (ROS1) or ``k`` (ROS2)."""
     k = np.asarray(msg.K if hasattr(msg, "K") else msg.k, dtype=float)
@@ -174,6 +198,7 @@ def intrinsics_from_camera_info(msg: Any) -> CameraIntrinsics:
     )
 
 
+@_malformed_is_a_message_error
 def imu_from_msg(msg: Any, stamp_s: float) -> ImuSample:
     """ImuSample (rad/s, m/s^2) of a ``sensor_msgs/Imu``."""
     w, a = msg.angular_velocity, msg.linear_acceleration
@@ -189,6 +214,7 @@ def _yaw_of(orientation: Any) -> float:
     return float(yaw_from_quat_wxyz(quat_wxyz_from_xyzw(q_xyzw)))
 
 
+@_malformed_is_a_message_error
 def ground_truth_pose_from_msg(msg: Any, stamp_s: float) -> GroundTruthPose:
     """Planar ``[x, y, yaw]`` of a ``geometry_msgs/PoseStamped`` (z, roll, pitch dropped)."""
     pose = msg.pose
@@ -196,6 +222,7 @@ def ground_truth_pose_from_msg(msg: Any, stamp_s: float) -> GroundTruthPose:
     return GroundTruthPose(stamp_s, np.array([pose.position.x, pose.position.y, yaw_rad]))
 
 
+@_malformed_is_a_message_error
 def ground_truth_map_from_msg(msg: Any, stamp_s: float) -> GroundTruthMap:
     """``cells[iy, ix]`` int8 and grid geometry of a ``nav_msgs/OccupancyGrid``.
 
@@ -225,6 +252,7 @@ def ground_truth_map_from_msg(msg: Any, stamp_s: float) -> GroundTruthMap:
     return GroundTruthMap(stamp_s, data.reshape(rows, cols).copy(), spec)
 
 
+@_malformed_is_a_message_error
 def extrinsics_from_tf(transforms: Iterable[Any]) -> Extrinsics:
     """``T_base_radar`` / ``T_base_camera`` from ``TransformStamped`` messages.
 

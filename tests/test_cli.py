@@ -137,7 +137,7 @@ def test_evaluate_scores_a_saved_map_against_log_and_map_truth(office_log, tmp_p
     [
         (["info", "{tmp}/missing.mcap"], "not found"),
         (["info", "{tmp}/notes.bag"], "not a ROS1 bag"),
-        (["info", "{tmp}/half.mcap"], "truncated or corrupt"),
+        (["info", "{tmp}/stub.mcap"], "truncated or corrupt"),
         (["map", "{tmp}/nomap.bag", "--out", "{tmp}/o"], "ground_truth_pose"),
         (["dump-config", "--config", "{tmp}/bad.yaml"], "unknown config key 'smoke.radar_los'"),
         (["simulate", "--world", "castle", "--out", "{tmp}/x.mcap"], "castle"),
@@ -147,7 +147,7 @@ def test_evaluate_scores_a_saved_map_against_log_and_map_truth(office_log, tmp_p
 def test_bad_input_gets_one_clear_line_and_exit_1(args, message, tmp_path, office_log):
     (tmp_path / "notes.bag").write_text("these are not radar data\n")
     data = office_log.read_bytes()
-    (tmp_path / "half.mcap").write_bytes(data[: len(data) // 2])
+    (tmp_path / "stub.mcap").write_bytes(data[:300])
     (tmp_path / "bad.yaml").write_text("smoke:\n  radar_los: 0.1\n")
     (tmp_path / "broken.yaml").write_text("image: gone.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
     _radar_only_bag(tmp_path / "nomap.bag")

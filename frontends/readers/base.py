@@ -39,6 +39,8 @@ class LogSummary:
     duration_s: float
     start_s: float
     streams: list[StreamSummary] = field(default_factory=list)
+    damage: str | None = None
+    """Where a damaged log breaks off (the counts are of what could be read)."""
 
 
 SENSOR_STREAMS = ("radar", "imu", "camera_image", "camera_depth")

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import gzip
 import logging
+import zlib
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -82,8 +83,19 @@ def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
     return values[:n], values[n:]
 
 
-def read_laser_log(path: Path) -> LaserLog:
-    """Parse every ``FLASER`` line of a CARMEN log (plain or gzip text)."""
+MAX_RANGE_M = 1000.0
+"""Beams longer than this (or negative) are no laser's reading: counted and left out."""
+
+
+def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
+    """Parse every ``FLASER`` line of a CARMEN log (plain or gzip text).
+
+    The beam count is the one most lines have (a damaged first line cannot decide it); lines
+    with another count are skipped. Beams beyond ``MAX_RANGE_M`` or negative read as no
+    return; a line of only such beams is dropped, and so is a line whose pose jumps more than
+    ``max_jump_m`` from the line before while the line after it does not (a single absurd
+    pose). All are counted and warned.
+    """
     opener = gzip.open if path.suffix == ".gz" else open
     ranges, poses, skipped, offset = [], [], 0, 0.0
     try:
@@ -97,19 +109,54 @@ def read_laser_log(path: Path) -> LaserLog:
                         offset = _float_or(tokens[2], offset)
                     continue
                 record = _parse_flaser(tokens)
-                if record is None or (ranges and record[0].size != ranges[0].size):
+                if record is None:
                     skipped += 1
                     logger.debug("%s:%d: malformed FLASER line skipped", path, number)
                     continue
                 ranges.append(record[0])
                 poses.append(record[1])
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
-        raise LogError(f"{path}: cannot read CARMEN log ({exc})") from exc
-    if skipped:
-        logger.warning("%s: skipped %d malformed FLASER lines", path, skipped)
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:
+        raise LogError(f"{path}: cannot read CARMEN log ({exc})") from None
     if not ranges:
         raise LogError(f"{path}: no FLASER lines")
-    return LaserLog(np.array(ranges), np.array(poses), offset, skipped)
+    sizes, counts = np.unique([r.size for r in ranges], return_counts=True)
+    n_beams = int(sizes[np.argmax(counts)])
+    same = [i for i, r in enumerate(ranges) if r.size == n_beams]
+    skipped += len(ranges) - len(same)
+    ranges_m = np.array([ranges[i] for i in same])
+    poses_m = np.array([poses[i] for i in same])
+    absurd = (ranges_m < 0.0) | (ranges_m > MAX_RANGE_M)
+    ranges_m[absurd] = np.inf
+    keep = _without_pose_spikes(poses_m, max_jump_m) & ~absurd.all(axis=1)
+    if skipped:
+        logger.warning("%s: skipped %d malformed FLASER lines", path, skipped)
+    if absurd.any():
+        logger.warning(
+            "%s: %d beams out of range (< 0 or > %g m) left out", path, absurd.sum(), MAX_RANGE_M
+        )
+    if not keep.all():
+        logger.warning(
+            "%s: %d lines with no usable beam or a pose jumping more than %g m and back dropped",
+            path,
+            (~keep).sum(),
+            max_jump_m,
+        )
+    return LaserLog(ranges_m[keep], poses_m[keep], offset, skipped + int((~keep).sum()))
+
+
+def _without_pose_spikes(poses: np.ndarray, max_jump_m: float) -> np.ndarray:
+    """(S,) bool: lines kept. A line is dropped when it is further than ``max_jump_m`` from
+    the last kept line but the line after it is not (the walk did not really go there)."""
+    keep = np.ones(len(poses), dtype=bool)
+    last = 0
+    for i in range(1, len(poses)):  # sequential by nature: one test per line
+        jump = np.hypot(*(poses[i, :2] - poses[last, :2]))
+        back = i + 1 < len(poses) and np.hypot(*(poses[i + 1, :2] - poses[last, :2])) <= max_jump_m
+        if jump > max_jump_m and back:
+            keep[i] = False
+        else:
+            last = i
+    return keep
 
 
 def _float_or(token: str, default: float) -> float:
@@ -127,7 +174,7 @@ class CarmenReader:
         if not self.path.is_file():
             raise LogError(f"{self.path}: no such log")
         self._config = config
-        self._log = read_laser_log(self.path)
+        self._log = read_laser_log(self.path, config.carmen.max_jump_m)
         n_beams = self._log.ranges_m.shape[1]
         self.beams = BeamGeometry(beam_bearings(n_beams), detect_no_return(self._log.ranges_m))
         self.dt_s = 1.0 / config.carmen.nominal_rate_hz

@@ -11,6 +11,9 @@
   stamps run backwards while its log time runs forwards, is reported with the time and the
   size of the jump.
 
+- A message that does not decode (malformed, damaged) is skipped; a topic none of whose
+  messages can be used is an error at the end.
+
 Every stream with something dropped or odd gets one warning when the log has been read
 (``report``), with the counts; ``counts`` keeps them for ``metrics.json``.
 """
@@ -43,6 +46,24 @@ class StreamChecks:
         """Time anomalies, one line each (the first few of each stream)."""
         self._last: dict[str, tuple[float, float]] = {}
         self._image_shape: tuple[int, int] | None = None
+        self._good: Counter[str] = Counter()
+        self._bad: Counter[str] = Counter()
+        self._first_bad: dict[str, str] = {}
+
+    def good_message(self, topic: str) -> None:
+        self._good[topic] += 1
+
+    def bad_message(self, topic: str, problem: str) -> None:
+        """A message that could not be decoded or used: skipped, counted, the first kept."""
+        self._bad[topic] += 1
+        self._first_bad.setdefault(topic, problem)
+
+    def unusable_topic(self) -> str | None:
+        """A topic none of whose messages could be used (the first problem), if any."""
+        for topic, count in self._bad.items():
+            if count and not self._good[topic]:
+                return f"{topic} ({count} messages; the first: {self._first_bad[topic]})"
+        return None
 
     def radar(self, scan: RadarScan, dropped_points: int, has_velocity: bool) -> RadarScan:
         """The decoded scan (its bad points already dropped by the decoder), counted."""
@@ -116,3 +137,11 @@ class StreamChecks:
                 logger.warning("%s: %d %s", self.path, self.counts[key], text)
         for line in self.notes:
             logger.warning("%s: %s", self.path, line)
+        for topic, count in self._bad.items():
+            logger.warning(
+                "%s: %d malformed %s messages skipped (the first: %s)",
+                self.path,
+                count,
+                topic,
+                self._first_bad[topic],
+            )

@@ -6,33 +6,32 @@ present in the log with the expected message type is used.
 Time: every frame is stamped with its message's log (receive) time minus the log's first
 message time, so ``stamp_s`` starts at 0. Header stamps are not used for time because real
 logs mix clocks (the TI radar driver leaves them at 0; the IMU of the demo bag runs 4 days off
-the bag clock). smokyslam's own logs write header stamp = log time, so nothing is lost.
+the bag clock), except where the log time itself is broken (``clock.py``). smokyslam's own
+logs write header stamp = log time, so nothing is lost.
 
 Camera: images carry the intrinsics of the latest ``CameraInfo`` (the first one in the log
 before any arrives) and are paired with their depth images (``camera_pairing.py``). Messages
-are decoded one at a time as the log is read; what cannot be used (NaN samples, images of the
-wrong size) is dropped and counted at this boundary (``checks.py``), and time jumps reported.
+are decoded one at a time as the log is read (``rosbag_file.py``: damage, salvage, clock);
+what cannot be used (NaN samples, images of the wrong size) is dropped and counted at this
+boundary (``checks.py``), and time jumps reported.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Collection, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.rosbag1 import ReaderError as ReaderError1
-from rosbags.rosbag2 import ReaderError as ReaderError2
 
 from smokyslam.config import TopicsConfig
-from smokyslam.errors import LogError, MessageError, TopicError
-from smokyslam.frontends.readers.base import SENSOR_STREAMS, LogSummary, StreamSummary
+from smokyslam.errors import MessageError, TopicError
+from smokyslam.frontends.readers.base import SENSOR_STREAMS, LogSummary
 from smokyslam.frontends.readers.camera_pairing import FrameAssembler
 from smokyslam.frontends.readers.checks import StreamChecks
-from smokyslam.rosmsg import STREAM_MSGTYPES, header_stamp_ns, typestore_for
+from smokyslam.frontends.readers.rosbag_file import NS, RosbagFile
+from smokyslam.rosmsg import STREAM_MSGTYPES, header_stamp_ns
 from smokyslam.rosmsg_decode import (
     extrinsics_from_tf,
     ground_truth_map_from_msg,
@@ -46,21 +45,11 @@ from smokyslam.types import (
     Extrinsics,
     Frame,
     GroundTruthMap,
+    GroundTruthPose,
     GroundTruthTrajectory,
 )
 
 logger = logging.getLogger(__name__)
-
-_READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
-_NS = 1e-9
-
-
-def _format_of(path: Path) -> str:
-    if path.is_dir():
-        return "ROS2 folder"
-    return {".bag": "ROS1 bag", ".mcap": "ROS2 MCAP", ".db3": "ROS2 sqlite3"}.get(
-        path.suffix.lower(), "rosbag"
-    )
 
 
 class RosbagReader:
@@ -79,31 +68,15 @@ class RosbagReader:
         self.path = Path(path)
         self.topics = topics
         self._extrinsics = extrinsics
-        self.format = _format_of(self.path)
-        with self._open() as reader:
-            self._log_types = {name: info.msgtype or "?" for name, info in reader.topics.items()}
-        self.stream_topics = self._resolve_streams()
+        self._file = RosbagFile(self.path)
+        self.format = self._file.format
         self.max_gap_s = max_gap_s
         self.checks: StreamChecks | None = None
         """The checks of the latest ``frames()`` pass (what was dropped, time anomalies)."""
         self._intrinsics: CameraIntrinsics | None = None
         self._intrinsics_read = False
-
-    # ------------------------------------------------------------ opening and topics
-
-    @contextmanager
-    def _open(self) -> Iterator[AnyReader]:
-        """An open AnyReader; rosbags' errors become one-line LogErrors."""
-        default_store = typestore_for(ros1=self.path.suffix.lower() == ".bag")
-        try:
-            with AnyReader([self.path], default_typestore=default_store) as reader:
-                yield reader
-        except _READ_ERRORS as exc:
-            raise LogError(
-                f"{self.path}: cannot read {self.format}, truncated or corrupt ({exc})"
-            ) from None
-        except FileNotFoundError:
-            raise LogError(f"log not found: {self.path}") from None
+        self._log_types = self._file.types
+        self.stream_topics = self._resolve_streams()
 
     def _resolve_streams(self) -> dict[str, str]:
         streams = {}
@@ -138,48 +111,38 @@ class RosbagReader:
             )
 
     def _messages(self, *streams: str) -> Iterator[tuple[str, float, Any]]:
-        """(stream, stamp_s from log start, decoded message) of the named streams, in order."""
+        """(stream, stamp_s from the log start, decoded message) of the named streams."""
         by_topic = {self.stream_topics[s]: s for s in streams if s in self.stream_topics}
-        if not by_topic:
-            return
-        with self._open() as reader:
-            start_ns = reader.start_time
-            wanted = [c for c in reader.connections if c.topic in by_topic]
-            for connection, log_ns, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, connection.msgtype)
-                yield by_topic[connection.topic], (log_ns - start_ns) * _NS, msg
+        clocked = (*SENSOR_STREAMS, "ground_truth_pose")
+        clock_topics = (
+            []
+            if set(streams) <= {"tf_static", "ground_truth_map"}
+            else [self.stream_topics[s] for s in clocked if s in self.stream_topics]
+        )
+        for topic, stamp_s, msg in self._file.messages(by_topic, clock_topics):
+            yield by_topic[topic], stamp_s, msg
 
     # ------------------------------------------------------------ LogReader protocol
 
     def summary(self) -> LogSummary:
-        """Every topic with its type, count and rate (from its own first/last log time)."""
-        with self._open() as reader:
-            start_ns = reader.start_time if reader.message_count else 0
-            spans: dict[str, list[int]] = {}
-            for connection, log_ns, _ in reader.messages():
-                span = spans.setdefault(connection.topic, [log_ns, log_ns, 0])
-                span[1], span[2] = log_ns, span[2] + 1
-            streams = []
-            for topic, info in sorted(reader.topics.items()):
-                first, last, count = spans.get(topic, [0, 0, 0])
-                rate_hz = (count - 1) / ((last - first) * _NS) if last > first else 0.0
-                streams.append(StreamSummary(topic, info.msgtype or "?", count, rate_hz))
-            last_ns = max((span[1] for span in spans.values()), default=start_ns)
-        return LogSummary(
-            path=self.path,
-            format=self.format,
-            duration_s=(last_ns - start_ns) * _NS,
-            start_s=start_ns * _NS,
-            streams=streams,
-        )
+        """Every topic with its type, count and rate; of a damaged log, what can be read."""
+        return self._file.summary()
+
+    @property
+    def damage(self) -> str | None:
+        """Where the file breaks off, when it does (what was read before is used)."""
+        return self._file.damage
 
     def camera_intrinsics(self) -> CameraIntrinsics | None:
-        """Intrinsics of the first CameraInfo message, or None without a camera_info topic."""
+        """Intrinsics of the first usable CameraInfo message, or None without one."""
         if not self._intrinsics_read:
             self._intrinsics_read = True
-            for _, _, msg in self._messages("camera_info"):
-                self._intrinsics = intrinsics_from_camera_info(msg)
-                break
+            for _, stamp_s, msg in self._messages("camera_info"):
+                try:
+                    self._intrinsics = intrinsics_from_camera_info(msg)
+                    break
+                except MessageError as exc:
+                    logger.warning("%s: camera_info at %.2f s skipped: %s", self.path, stamp_s, exc)
         return self._intrinsics
 
     def extrinsics(self) -> Extrinsics:
@@ -199,7 +162,7 @@ class RosbagReader:
         """The last usable ground-truth OccupancyGrid in the log, or None (an unusable one, e.g.
         with a NaN resolution, is left out with a warning)."""
         latest = None
-        for _, stamp_s, msg in self._messages("ground_truth_map"):
+        for _, stamp_s, msg in self._messages("ground_truth_map"):  # any damage: MessageError
             try:
                 latest = ground_truth_map_from_msg(msg, stamp_s)
             except MessageError as exc:
@@ -210,10 +173,14 @@ class RosbagReader:
 
     def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
         """Every finite ground-truth pose of the log, sorted by stamp (repeated stamps kept
-        once), or None when it has none; non-finite poses are dropped with a warning."""
+        once), or None when it has none; non-finite or malformed poses are dropped with a
+        warning."""
         stamps, poses = [], []
         for _, stamp_s, msg in self._messages("ground_truth_pose"):
-            pose = ground_truth_pose_from_msg(msg, stamp_s)
+            try:
+                pose = ground_truth_pose_from_msg(msg, stamp_s)
+            except MessageError:
+                pose = GroundTruthPose(stamp_s, np.full(3, np.nan))  # dropped below
             stamps.append(pose.stamp_s)
             poses.append(pose.pose_world_base)
         if not stamps:
@@ -222,7 +189,9 @@ class RosbagReader:
         finite = np.isfinite(poses_array).all(axis=1)
         if not finite.all():
             logger.warning(
-                "%s: %d ground-truth poses with NaN/inf values dropped", self.path, (~finite).sum()
+                "%s: %d ground-truth poses with NaN/inf values or malformed dropped",
+                self.path,
+                (~finite).sum(),
             )
         if not finite.any():
             return None
@@ -248,14 +217,18 @@ class RosbagReader:
         streams = [s for s in STREAM_MSGTYPES if s in wanted]
         for stream, stamp_s, msg in self._messages(*streams):
             topic = self.stream_topics[stream]
-            checks.time(topic, stamp_s, header_stamp_ns(msg) * _NS)
             try:
+                checks.time(topic, stamp_s, header_stamp_ns(msg) * NS)
                 self._dispatch(assembler, checks, stream, stamp_s, msg)
             except MessageError as exc:
-                raise MessageError(f"{self.path}: {topic} at {stamp_s:.3f} s: {exc}") from None
+                checks.bad_message(topic, f"{topic} at {stamp_s:.3f} s: {exc}")
+            else:
+                checks.good_message(topic)
             yield from assembler.release(stamp_s)
         yield from assembler.release(float("inf"))
         checks.report()
+        if unusable := checks.unusable_topic():
+            raise MessageError(f"{self.path}: no {unusable} message could be used")
 
     def _dispatch(
         self,

@@ -20,6 +20,7 @@ from smokyslam.cli.options import (
 )
 from smokyslam.config import config_to_yaml
 from smokyslam.errors import ConfigError
+from smokyslam.outputs import writable_file
 
 
 def dump_config(config: ConfigOption = None) -> None:
@@ -42,6 +43,7 @@ def simulate(
     """Simulate a walk through a building and record radar, camera, IMU and ground truth."""
     if out.suffix not in (".mcap", ".bag"):
         raise ConfigError(f"--out must end in .mcap or .bag, got '{out.name}'")
+    writable_file(out, "--out")
     cfg = effective_config(config)
     from smokyslam.progress import progress_bar
     from smokyslam.sim.simulate import simulate as run_simulation
@@ -116,9 +118,9 @@ def evaluate(
     """Score a saved map against ground truth (error index, occupied precision/recall/F1/IoU)."""
     from smokyslam.pipelines.evaluate_map import evaluate_map_file
 
+    target = writable_file(out or map_yaml.with_name(map_yaml.stem + "_metrics.json"), "--out")
     metrics = evaluate_map_file(map_yaml, truth, effective_config(config))
     for key, value in metrics.items():
         typer.echo(f"{key:20s} {value:.4f}")
-    target = out or map_yaml.with_name(map_yaml.stem + "_metrics.json")
     target.write_text(json.dumps(metrics, indent=2) + "\n")
     typer.echo(f"wrote {target}")

@@ -20,6 +20,7 @@ from smokyslam.cli.options import (
     smoke_overrides,
     summary_line,
 )
+from smokyslam.outputs import writable_file
 
 
 def run(
@@ -43,6 +44,8 @@ def run(
     cfg = effective_config(
         config, smoke_overrides(smoke, radar_loss, camera_noise, haze), calibration
     )
+    if rerun is not None:
+        writable_file(rerun, "--rerun")
     from smokyslam.frontends.readers.registry import open_log
     from smokyslam.pipelines.run import run_log
     from smokyslam.pipelines.sources import get_source

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from smokyslam.config.base import Section as _Section
 
@@ -96,6 +96,15 @@ class MappingConfig(_Section):
         0.05, gt=0.0, description="a keyframe moved this far: re-render the maps"
     )
     remap_rotation_rad: float = Field(0.01, gt=0.0, description="or turned this far")
+
+    @model_validator(mode="after")
+    def _thresholds_in_order(self) -> MappingConfig:
+        if self.occupied_thresh <= self.free_thresh:
+            raise ValueError(
+                f"occupied_thresh ({self.occupied_thresh}) must be above free_thresh "
+                f"({self.free_thresh})"
+            )
+        return self
 
 
 class CameraOdometryConfig(_Section):

@@ -143,6 +143,9 @@ class CarmenConfig(_Section):
     gyro_noise_deg: float = Field(1.0, ge=0.0, description="yaw noise sigma per scan, degrees")
     gyro_bias_deg: float = Field(0.05, description="yaw bias per scan, degrees")
     seed: int = 0
+    max_jump_m: float = Field(
+        5.0, gt=0.0, description="a line whose pose jumps this far and back is dropped"
+    )
     map_radius_m: float = Field(
         30.0,
         gt=0.0,

@@ -69,6 +69,8 @@ def simulate(
     if duration_s <= 0:
         raise SmokySlamError(f"duration must be positive, got {duration_s}")
     started = time.perf_counter()
+    out_path = Path(out_path)
+    log_writer = LogWriter(out_path, config.topics, overwrite=overwrite)  # checks the path now
     sim = config.simulation
     world = build_world(world_name, seed, sim)
     trajectory = plan_walk(world, duration_s, seed, sim.trajectory)
@@ -93,8 +95,7 @@ def simulate(
     camera_poses = sensor_poses(trajectory.pose_at(camera_stamps), camera_mount(config.rig))
 
     points = 0
-    out_path = Path(out_path)
-    with LogWriter(out_path, config.topics, overwrite=overwrite) as writer:
+    with log_writer as writer:
         writer.write_tf_static(rig_extrinsics(config.rig), 0.0)
         writer.write_ground_truth_map(
             GroundTruthMap(stamp_s=0.0, cells=world.ground_truth_cells(), spec=world.spec)
