@@ -210,15 +210,25 @@ class SlamBackend:
 
     def trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         """(N,) stamps and (N, 3) base_link poses of every primary frame so far."""
-        return np.asarray(self.frame_stamps_s, dtype=float), self.poses_world_base()
+        poses = self.poses_world_base()
+        return np.asarray(self.frame_stamps_s[: len(poses)], dtype=float), poses
 
     def poses_world_base(self) -> np.ndarray:
         """(N, 3) base_link pose of every primary frame so far: its keyframe's current
-        estimate composed with the odometry's motion since that keyframe."""
+        estimate composed with the odometry's motion since that keyframe. (A run stopped in
+        the middle of a frame gives the frames whose keyframe the graph already holds.)"""
         estimates = self._graph.estimates()
-        keyframes = np.asarray(self._keyframer.frame_keyframe, dtype=int)
-        offsets = np.asarray(self._keyframer.frame_offset).reshape(-1, 3)
+        keyframes = np.asarray(self._keyframer.frame_keyframe[: self._complete()], dtype=int)
+        offsets = np.asarray(self._keyframer.frame_offset[: len(keyframes)]).reshape(-1, 3)
         return se2_compose(estimates[keyframes], offsets).reshape(-1, 3)
+
+    def _complete(self) -> int:
+        """Frames whose every record (stamp, place, keyframe estimate) exists."""
+        keyframes = np.asarray(self._keyframer.frame_keyframe, dtype=int)
+        known = len(self._graph.estimates())
+        n = min(len(self.frame_stamps_s), len(keyframes), len(self._keyframer.frame_offset))
+        missing = np.flatnonzero(keyframes[:n] >= known)
+        return int(missing[0]) if len(missing) else n
 
     # ------------------------------------------------------------------ policies
 

@@ -45,5 +45,13 @@ class EstimationError(SmokySlamError):
     """An estimator failed in a way the caller should report (e.g. a degenerate graph)."""
 
 
+class RunInterruptedError(SmokySlamError):
+    """The user stopped a run (Ctrl-C); what it computed so far was written to ``out_dir``."""
+
+    def __init__(self, out_dir: object) -> None:
+        super().__init__(f"interrupted: what was computed so far is in {out_dir}/")
+        self.out_dir = out_dir
+
+
 class OutputError(SmokySlamError):
     """An output folder cannot be used (it holds an earlier run, or cannot be written)."""

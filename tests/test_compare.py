@@ -13,15 +13,9 @@ from smokyslam.errors import ConfigError, EstimationError, LogError, OutputError
 from smokyslam.evaluation.compare_plot import run_paths
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
 from smokyslam.evaluation.trajectory_io import write_tum
-from smokyslam.pipelines import compare as compare_module
-from smokyslam.pipelines.compare import (
-    CompareJob,
-    compare,
-    parse_smoke_levels,
-    parse_sources,
-    run_job,
-    run_jobs,
-)
+from smokyslam.pipelines import jobs as jobs_module
+from smokyslam.pipelines.compare import compare, parse_smoke_levels, parse_sources
+from smokyslam.pipelines.jobs import CompareJob, run_job, run_jobs
 from smokyslam.smoke import SmokeLevel
 
 HEADER = [
@@ -205,7 +199,7 @@ def _failing_run(log_path, source, config, run_dir, **options):
 
 
 def test_a_run_that_raises_becomes_a_failed_row(office_log, tmp_path, monkeypatch):
-    monkeypatch.setattr(compare_module, "run_log", _failing_run)
+    monkeypatch.setattr(jobs_module, "run_log", _failing_run)
     level = SmokeLevel("0.1", "0.2")
     job = CompareJob("broken", level, office_log, load_config(), tmp_path / "broken-r0.1-c0.2")
     row = run_job(job)
@@ -214,7 +208,10 @@ def test_a_run_that_raises_becomes_a_failed_row(office_log, tmp_path, monkeypatc
     # One worker runs the jobs here, in order; a bug that is no SmokySlamError is named by type.
     buggy = CompareJob("buggy", level, office_log, load_config(), tmp_path / "buggy-r0.1-c0.2")
     progress = []
-    rows = run_jobs([buggy, job], 1, lambda done, total, status="": progress.append(status))
+    rows, interrupted = run_jobs(
+        [buggy, job], 1, lambda done, total, status="": progress.append(status)
+    )
+    assert not interrupted
     assert [(r.source, r.error) for r in rows] == [
         ("buggy", "KeyError: 'missing'"),
         ("broken", "the pose graph is degenerate"),

@@ -16,7 +16,7 @@ import typer
 
 from smokyslam import __version__
 from smokyslam.cli import log_commands, run_commands
-from smokyslam.errors import SmokySlamError
+from smokyslam.errors import RunInterruptedError, SmokySlamError
 
 app = typer.Typer(
     name="smokyslam",
@@ -65,12 +65,19 @@ def _root(
 
 
 def main() -> None:
-    """Console entry point."""
+    """Console entry point: one line for any known error, and for Ctrl-C (exit code 130)."""
     try:
         app()
+    except RunInterruptedError as exc:  # the run kept what it had computed
+        typer.echo(str(exc), err=True)
+        sys.exit(130)
     except SmokySlamError as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(1)
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         sys.exit(130)
+    except SystemExit as exc:
+        if exc.code == 130:  # typer turns a Ctrl-C outside a run into a silent exit 130
+            typer.echo("interrupted", err=True)
+        raise

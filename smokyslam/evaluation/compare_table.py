@@ -44,6 +44,7 @@ class RunStatus(StrEnum):
 
     OK = "ok"
     FAILED = "failed"
+    INTERRUPTED = "interrupted"
 
 
 @dataclass

@@ -77,7 +77,7 @@ class KeyframeRadarMap:
     def grid(self, keyframe_poses: np.ndarray) -> OccupancyGrid:
         """The live grid on (K, 3) current keyframe poses (drawn again if any has moved)."""
         poses = np.asarray(keyframe_poses, dtype=float).reshape(-1, 3)[: len(self._scans)]
-        moved = se2_between(self._drawn, poses)
+        moved = se2_between(self._drawn[: len(poses)], poses)
         if len(poses) and (
             np.hypot(moved[:, 0], moved[:, 1]).max() > self._remap[0]
             or np.abs(moved[:, 2]).max() > self._remap[1]
@@ -101,7 +101,7 @@ class KeyframeRadarMap:
 
     def _draw(self, mapper: RadarGridMapper, poses: np.ndarray) -> None:
         radar_poses = se2_compose(poses, self._pose_base_radar).reshape(-1, 3)
-        for scan, pose in zip(self._scans, radar_poses, strict=True):  # one call per keyframe
+        for scan, pose in zip(self._scans, radar_poses, strict=False):  # one call a keyframe
             mapper.insert(scan, pose)
 
 

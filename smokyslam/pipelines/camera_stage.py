@@ -11,15 +11,21 @@ at import time needs the ``if __name__ == "__main__":`` guard.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
+import os
+import signal
+import threading
 import time
+from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any
 
 from smokyslam.config import CameraOdometryConfig
 from smokyslam.frontends.camera.odometry import CameraOdometry
 from smokyslam.frontends.camera.result import CameraOdometryResult
+from smokyslam.pipelines.worker_process import start_worker_process
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.types import CameraFrame, CameraIntrinsics
 
@@ -50,8 +56,28 @@ _WORKER: dict[str, SmokyCamera] = {}
 """The camera odometry living in a camera worker process."""
 
 
-def _start_worker(*camera: Any) -> None:
+def _start_worker(parent_pid: int, *camera: Any) -> None:
+    start_worker_process(parent_pid)  # Ctrl-C is the main process's to handle; exit with it
     _WORKER["camera"] = SmokyCamera(*camera)
+
+
+def _ready() -> bool:
+    return True
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while a worker is started: a child inherits an ignored signal, so a
+    Ctrl-C in the terminal reaches the main process only (and no worker prints a traceback
+    of it). Only the main thread can change signal handlers; elsewhere nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _track_in_worker(frame: CameraFrame) -> Tracked:
@@ -78,12 +104,14 @@ class CameraStage:
         self._inline: SmokyCamera | None = None
         self._executor: ProcessPoolExecutor | None = None
         if worker:
-            self._executor = ProcessPoolExecutor(
-                1,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=_start_worker,
-                initargs=camera,
-            )
+            with _sigint_ignored():
+                self._executor = ProcessPoolExecutor(
+                    1,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=_start_worker,
+                    initargs=(os.getpid(), *camera),
+                )
+                self._executor.submit(_ready)  # starts the worker now, SIGINT ignored
         else:
             self._inline = SmokyCamera(*camera)
 

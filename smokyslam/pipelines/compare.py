@@ -21,22 +21,17 @@ worker or ``smokyslam run``. A folder holding an earlier comparison is refused u
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import multiprocessing
-import os
 import time
-import traceback
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig, write_config
-from smokyslam.errors import ConfigError, SmokySlamError
-from smokyslam.evaluation.compare_table import CompareRow, RunStatus, write_tables
+from smokyslam.errors import ConfigError, RunInterruptedError, SmokySlamError
+from smokyslam.evaluation.compare_table import CompareRow, write_tables
 from smokyslam.outputs import claim_folder
-from smokyslam.pipelines.run import run_log
+from smokyslam.pipelines.jobs import CompareJob, default_workers, run_jobs
 from smokyslam.pipelines.sources import get_source
 from smokyslam.smoke import SmokeLevel, check_number, parse_smoke
 
@@ -101,71 +96,6 @@ def parse_sources(text: str) -> list[str]:
     return sources
 
 
-@dataclass(frozen=True)
-class CompareJob:
-    """One run: ``source`` over ``log_path`` with ``config`` (smoke level applied)."""
-
-    source: str
-    level: SmokeLevel
-    log_path: Path
-    config: SmokySlamConfig
-    run_dir: Path
-
-
-def run_job(job: CompareJob) -> CompareRow:
-    """Run one job (in a worker process); any exception becomes a failed row, never a raise."""
-    try:
-        result = run_log(job.log_path, job.source, job.config, job.run_dir, overwrite=True)
-    except Exception as exc:
-        message = str(exc) if isinstance(exc, SmokySlamError) else f"{type(exc).__name__}: {exc}"
-        # The folder itself may be what failed; the row carries the message either way.
-        with contextlib.suppress(OSError):
-            job.run_dir.mkdir(parents=True, exist_ok=True)
-            (job.run_dir / ERROR_LOG).write_text(traceback.format_exc())
-        return CompareRow(job.source, job.level, job.run_dir, RunStatus.FAILED, message)
-    return CompareRow(job.source, job.level, job.run_dir, RunStatus.OK, metrics=result.metrics)
-
-
-def default_workers(runs: int) -> int:
-    """Parallel runs when not given: up to 2, at most one per core, never more than runs."""
-    return max(1, min(os.cpu_count() or 1, 2, runs))
-
-
-def run_jobs(
-    jobs: Sequence[CompareJob], workers: int, on_progress: ProgressCallback | None = None
-) -> list[CompareRow]:
-    """Every job's row, in job order. ``workers`` > 1 runs them in that many spawned processes;
-    1 runs them here, one after another. ``on_progress(done, total, status=...)`` per run."""
-    rows: list[CompareRow | None] = [None] * len(jobs)
-
-    def finished(index: int, row: CompareRow) -> None:
-        rows[index] = row
-        done = sum(r is not None for r in rows)
-        if on_progress is not None:
-            on_progress(done, len(jobs), status=f"{row.run_dir.name} {row.status.value}")
-
-    if workers <= 1:
-        for index, job in enumerate(jobs):
-            finished(index, run_job(job))
-        return rows  # type: ignore[return-value]
-    context = multiprocessing.get_context(START_METHOD)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        futures = {pool.submit(run_job, job): index for index, job in enumerate(jobs)}
-        try:
-            for future in as_completed(futures):
-                index = futures[future]
-                try:
-                    row = future.result()
-                except Exception as exc:  # the worker process died (crash, out of memory)
-                    job, message = jobs[index], f"{type(exc).__name__}: {exc}"
-                    row = CompareRow(job.source, job.level, job.run_dir, RunStatus.FAILED, message)
-                finished(index, row)
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-    return rows  # type: ignore[return-value]
-
-
 @dataclass
 class CompareResult:
     """A finished comparison: one row per run and the files written into ``out_dir``."""
@@ -198,7 +128,8 @@ def compare(
 
     ``workers``: parallel processes (default :func:`default_workers`). Failed runs are rows
     with status ``failed``; only bad arguments (ConfigError), an unreadable log or an output
-    folder holding an earlier comparison (without ``overwrite``) raise.
+    folder holding an earlier comparison (without ``overwrite``) raise. Ctrl-C writes the
+    table of the runs so far (the others ``interrupted``) and raises RunInterruptedError.
     """
     from smokyslam.evaluation.compare_plot import plot_ate_vs_smoke, plot_trajectories
     from smokyslam.frontends.readers.registry import log_format
@@ -215,8 +146,10 @@ def compare(
     config_path = write_config(config, out_dir / "config.yaml")
     workers = workers or default_workers(len(jobs))
     logger.info("compare: %d runs on %d workers into %s", len(jobs), workers, out_dir)
-    rows = run_jobs(jobs, workers, on_progress)
+    rows, interrupted = run_jobs(jobs, workers, on_progress)
     csv_path, markdown_path = write_tables(rows, out_dir)
+    if interrupted:  # the table of what finished, marked; no plots
+        raise RunInterruptedError(out_dir)
     gt_map = _ground_truth_map(log_path, config)
     return CompareResult(
         rows=rows,

@@ -96,6 +96,7 @@ class RunEstimate:
     maps: OnlineMaps
     graph: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    interrupted: bool = False
 
 
 class _Clock:
@@ -153,16 +154,25 @@ class RunLoop:
 
     def run(self, frames: Iterable[Frame]) -> RunEstimate:
         """Every frame through the stages, then the estimate (the camera worker is stopped
-        on the way out, whatever happens)."""
+        on the way out, whatever happens). Ctrl-C stops reading: the estimate then holds what
+        was processed so far, with ``interrupted`` set."""
+        interrupted = False
         try:
-            for frame in frames:
-                self._read(frame)
-                self._hand_over(keep=MAX_LAG)
-            self._finish()
+            try:
+                for frame in frames:
+                    self._read(frame)
+                    self._hand_over(keep=MAX_LAG)
+                self._finish()
+            except KeyboardInterrupt:
+                interrupted = True
+                logger.info("interrupted: keeping what was processed so far")
+                self._hand_over(keep=len(self._order) + 1)  # what is done, without waiting
         finally:
             if self.stages.camera is not None:
                 self.stages.camera.shutdown()
-        return self._estimate()
+        estimate = self._estimate()
+        estimate.interrupted = interrupted
+        return estimate
 
     # ------------------------------------------------------------------ reading
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from smokyslam.config import SmokySlamConfig
+from smokyslam.errors import RunInterruptedError
 from smokyslam.evaluation.run_evaluation import RunEvaluation, evaluate_estimate
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import config_for_log, open_log
@@ -97,6 +98,8 @@ def run_log(
         write_trajectory(out, source, estimate, evaluation, truth, gt_map)
         write_maps(out, estimate, evaluation, gt_map)
         record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
+        if estimate.interrupted:
+            out.update_metrics({"interrupted": True})
         wall_s = time.perf_counter() - started
         duration_s = reader.summary().duration_s
         metrics = out.update_metrics(
@@ -107,4 +110,6 @@ def run_log(
             }
         )
     logger.info("%s run on %s: %.1f s of log in %.1f s", source, log_path, duration_s, wall_s)
+    if estimate.interrupted:
+        raise RunInterruptedError(out.root)
     return RunResult(source, out.root, metrics, estimate)
