@@ -64,11 +64,14 @@ def point_cloud_fields(msg: Any, drop: str) -> Any:
     return msg
 
 
-def nan_floats(values: Any, *names: str) -> Any:
-    """Set the named float attributes of a message part to NaN."""
-    for name in names:
-        setattr(values, name, float("nan"))
-    return values
+def nan_field(msg: Any, dotted: str) -> Any:
+    """The message with one float field (``"pose.position.x"``) set to NaN."""
+    *parents, name = dotted.split(".")
+    part = msg
+    for parent in parents:
+        part = getattr(part, parent)
+    setattr(part, name, float("nan"))
+    return msg
 
 
 def float32_points(msg: Any, column: int, value: float) -> Any:

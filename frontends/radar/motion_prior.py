@@ -20,6 +20,10 @@ from smokyslam.types import ImuSample, RadarScan
 NO_GYRO_YAW_SIGMA_RAD = np.pi
 """Yaw sigma of a step without gyro samples: the prior says nothing about yaw."""
 
+GAP_SIGMA_M = 2.0
+"""Translation sigma of a step across a gap in the log (longer than ``max_step_s``): the
+prior says next to nothing, and scan matching finds the rig in the map it has."""
+
 
 @dataclass
 class MotionPrior:
@@ -172,7 +176,10 @@ class MotionPriorEstimator:
         yaw_delta = self._gyro.integrate(imu, scan.stamp_s if previous is None else previous)
         if previous is None:
             return MotionPrior(np.zeros(3), np.diag([1e-6, 1e-6, 1e-6]), doppler)
-        dt_s = min(max(scan.stamp_s - previous, 1e-6), config.max_step_s)  # a gap: capped
+        dt_s = max(scan.stamp_s - previous, 1e-6)
+        if dt_s > config.max_step_s:  # a gap in the log: nothing is known of the motion
+            gap_cov = np.diag([GAP_SIGMA_M**2, GAP_SIGMA_M**2, NO_GYRO_YAW_SIGMA_RAD**2])
+            return MotionPrior(np.zeros(3), gap_cov, doppler, gap_cov, dt_s)
         velocity_cov = doppler.covariance
         if doppler.valid:
             self._last_velocity = doppler.velocity_mps

@@ -78,3 +78,8 @@ class LogReader(Protocol):
     def camera_intrinsics(self) -> CameraIntrinsics | None:
         """Camera intrinsics, when the log has a camera."""
         ...
+
+    def problems(self) -> dict[str, object]:
+        """What reading has dropped, skipped or found damaged so far (counts by kind, and
+        ``damage``), for ``metrics.json``; empty for a clean log."""
+        ...

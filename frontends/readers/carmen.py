@@ -246,3 +246,6 @@ class CarmenReader:
 
     def camera_intrinsics(self) -> CameraIntrinsics | None:
         return None
+
+    def problems(self) -> dict[str, object]:
+        return {"skipped_lines": self.skipped_lines} if self.skipped_lines else {}

@@ -133,6 +133,15 @@ class RosbagReader:
         """Where the file breaks off, when it does (what was read before is used)."""
         return self._file.damage
 
+    def problems(self) -> dict[str, object]:
+        counts = self.checks.counts if self.checks is not None else {}
+        found: dict[str, object] = {kind: n for kind, n in counts.items() if n}
+        if self._file.undecodable:
+            found["undecodable_messages"] = self._file.undecodable
+        if self.damage:
+            found["damage"] = self.damage
+        return found
+
     def camera_intrinsics(self) -> CameraIntrinsics | None:
         """Intrinsics of the first usable CameraInfo message, or None without one."""
         if not self._intrinsics_read:

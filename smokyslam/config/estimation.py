@@ -52,7 +52,7 @@ class RadarOdometryConfig(_Section):
     max_step_s: float = Field(
         2.0,
         gt=0.0,
-        description="frames further apart (a gap in the log) are predicted as this far apart",
+        description="frames further apart (a gap in the log): the motion prior says nothing",
     )
     coast_sigma_mps: float = Field(
         0.3,

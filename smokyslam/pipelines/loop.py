@@ -268,6 +268,12 @@ class RunLoop:
             "stage_s": dict(self._clock.seconds),
         }
         extra: dict[str, Any] = {}
+        if self.stages.radar is not None and self.stages.radar.thinned:
+            extra["thinned_scans"] = self.stages.radar.thinned
+            logger.warning(
+                "%d dense radar scans thinned to radar_odometry.max_points points",
+                self.stages.radar.thinned,
+            )
         if self.stages.camera is not None:
             extra["reinitializations"] = self._camera_restarts
         if self.stages.camera_steps is not None:

@@ -98,6 +98,8 @@ def run_log(
         write_trajectory(out, source, estimate, evaluation, truth, gt_map)
         write_maps(out, estimate, evaluation, gt_map)
         record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
+        if problems := reader.problems():
+            out.update_metrics({"log": problems})
         if estimate.interrupted:
             out.update_metrics({"interrupted": True})
         wall_s = time.perf_counter() - started
