@@ -53,10 +53,14 @@ def free_poses(world: World, n: int, rng: np.random.Generator, clearance_m: floa
     return np.array(poses)
 
 
-def write_robot_floorplan(yaml_path: Path, seed: int = 0, resolution_m: float = 0.05) -> Path:
+def write_robot_floorplan(
+    yaml_path: Path, seed: int = 0, resolution_m: float = 0.05, walls: bool = True
+) -> Path:
     """A 12 x 8 m flat as a robot maps it: 1-pixel walls with 15 % missed pixels, speckle,
     unknown outside the walls and an unexplored blob. An interior wall at x = 6 m has a 1 m door
-    at y in (2, 3) m. Map origin (-1, -1): the flat spans x in (0, 12), y in (0, 8) m.
+    at y in (2, 3) m. Map origin (-1, -1): the flat spans x in (0, 12), y in (0, 8) m. Without
+    ``walls`` nothing is drawn on the outline: free space simply ends at unknown, as in many
+    robot-built maps (the interior wall is then a strip of unknown).
     """
     rng = np.random.default_rng(seed)
     rows, cols = round(10.0 / resolution_m), round(14.0 / resolution_m)
@@ -67,7 +71,10 @@ def write_robot_floorplan(yaml_path: Path, seed: int = 0, resolution_m: float = 
     edge = resolution_m
     wall = inside & ((x < edge) | (x > 12.0 - edge) | (y < edge) | (y > 8.0 - edge))
     wall |= inside & (np.abs(x - 6.0) < 0.5 * edge) & ~((y > 2.0) & (y < 3.0))
-    cells[wall & (rng.random(wall.shape) > 0.15)] = OCCUPIED
+    if walls:
+        cells[wall & (rng.random(wall.shape) > 0.15)] = OCCUPIED
+    else:
+        cells[wall] = UNKNOWN
     cells[inside & (rng.random(wall.shape) < 0.002)] = OCCUPIED
     cells[(x - 9.0) ** 2 + (y - 6.5) ** 2 < 0.3] = UNKNOWN
     return save_map(yaml_path, cells, GridSpec((-1.0, -1.0), resolution_m, cells.shape))

@@ -105,3 +105,23 @@ def map_scores(cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap) -> dict
     """The contract's five map metrics of trinary cells over ``spec`` against a true map."""
     scores = evaluate_map(cells, spec, truth.cells, truth.spec)
     return {key: scores[key] for key in MAP_METRIC_KEYS}
+
+
+def wall_agreement(
+    truth_cells: np.ndarray, truth_spec: GridSpec, points_xy_m: np.ndarray, tolerance_m: float
+) -> float:
+    """The share of (N, 2) world points (e.g. radar returns) within ``tolerance_m`` of an
+    occupied ground-truth cell: how well the truth's walls match what the sensors hit."""
+    from scipy.ndimage import distance_transform_edt
+
+    points = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
+    if len(points) == 0:
+        return 0.0
+    # Distance from every cell centre to the nearest occupied cell's edge (about).
+    distance_m = distance_transform_edt(truth_cells != OCCUPIED) * truth_spec.resolution_m
+    distance_m = np.maximum(distance_m - 0.5 * truth_spec.resolution_m, 0.0)
+    cells = truth_spec.cells_of(points)
+    inside = truth_spec.inside(cells)
+    near = np.zeros(len(points), dtype=bool)
+    near[inside] = distance_m[cells[inside, 1], cells[inside, 0]] <= tolerance_m
+    return float(near.mean())

@@ -2,7 +2,8 @@
 
 Occupied cells become wall columns of ``config.wall_height_m``. Unknown cells are treated as
 solid (``occupied=True``, ``known=False``): a sensor cannot see past the edge of what the map
-knows, and the ground truth still reports them as unknown (-1).
+knows. The ground truth reports them as unknown (-1), except where they border free space:
+there the edge is a wall (``World.ground_truth_cells``).
 """
 
 from __future__ import annotations

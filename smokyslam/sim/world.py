@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 from smokyslam.geometry import GridSpec
 
@@ -29,9 +30,16 @@ class World:
     start_pose: np.ndarray | None = None
 
     def ground_truth_cells(self) -> np.ndarray:
-        """(rows_y, cols_x) int8: 100 occupied, 0 free, -1 unknown."""
+        """(rows_y, cols_x) int8: 100 occupied, 0 free, -1 unknown.
+
+        Every solid cell that borders free space is occupied, known or not: a robot-built
+        floor plan often draws no wall at all (the wall is where free meets unknown), yet the
+        sensors hit that edge as they hit a drawn wall.
+        """
         cells = np.where(self.occupied, 100, 0).astype(np.int8)
-        cells[~self.known] = -1
+        free = ~self.occupied & self.known
+        edge = self.occupied & binary_dilation(free, np.ones((3, 3), dtype=bool))
+        cells[~self.known & ~edge] = -1
         return cells
 
     def is_free(self, points_xy: np.ndarray) -> np.ndarray:
