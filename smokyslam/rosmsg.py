@@ -54,6 +54,7 @@ STREAM_MSGTYPES: dict[str, str] = {
     "imu": "sensor_msgs/msg/Imu",
     "ground_truth_pose": "geometry_msgs/msg/PoseStamped",
     "ground_truth_map": "nav_msgs/msg/OccupancyGrid",
+    "ground_truth_map_observed": "nav_msgs/msg/OccupancyGrid",
     "tf_static": "tf2_msgs/msg/TFMessage",
 }
 """Message type of every stream named in ``TopicsConfig``."""

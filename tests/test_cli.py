@@ -89,7 +89,10 @@ def _independent_error_index(map_yaml: Path, truth_cells: np.ndarray, truth_spec
 
 
 def test_map_contract_and_error_index_rising_with_radar_loss(office_log, tmp_path):
-    truth = open_log(office_log, load_config()).ground_truth_map()
+    reader = open_log(office_log, load_config())
+    truth, observed = reader.ground_truth_map(), reader.observed_ground_truth_map()
+    # A 30 s walk sees part of the building: the observed truth knows less than the full one.
+    assert 0.2 < (observed.cells != -1).sum() / (truth.cells != -1).sum() < 0.9
     scores = []
     for loss in ("0", "0.1", "0.2"):
         out_dir = tmp_path / f"map-{loss}"
@@ -101,17 +104,19 @@ def test_map_contract_and_error_index_rising_with_radar_loss(office_log, tmp_pat
             assert (out_dir / name).is_file(), name
         assert load_config(out_dir / "config.yaml").smoke.radar_loss == float(loss)
         sparse = json.loads((out_dir / "metrics.json").read_text())["maps"]["radar_sparse"]
-        assert set(sparse) == {
+        five = {
             "error_index",
             "occupied_precision",
             "occupied_recall",
             "occupied_f1",
             "occupied_iou",
         }
-        independent = _independent_error_index(
-            out_dir / "maps/radar_sparse.yaml", truth.cells, truth.spec
-        )
-        assert sparse["error_index"] == pytest.approx(independent, abs=0.02)
+        assert set(sparse) == five | {"observed"} and set(sparse["observed"]) == five
+        for got, true_map in ((sparse, truth), (sparse["observed"], observed)):
+            independent = _independent_error_index(
+                out_dir / "maps/radar_sparse.yaml", true_map.cells, true_map.spec
+            )
+            assert got["error_index"] == pytest.approx(independent, abs=0.02)
         scores.append(sparse)
     assert scores[0]["error_index"] < 0.35
     assert scores[0]["occupied_precision"] >= 0.6
@@ -125,7 +130,10 @@ def test_evaluate_scores_a_saved_map_against_log_and_map_truth(office_log, tmp_p
     map_yaml = out_dir / "maps/radar_sparse.yaml"
     out = smokyslam("evaluate", map_yaml, "--truth", office_log, "--out", tmp_path / "m.json")
     assert out.returncode == 0, out.stderr
-    assert json.loads((tmp_path / "m.json").read_text()) == pytest.approx(expected)
+    scored = json.loads((tmp_path / "m.json").read_text())
+    assert scored.pop("observed") == pytest.approx(expected.pop("observed"))
+    assert scored == pytest.approx(expected)
+    assert "observed truth:" in out.stdout
     # A map scored against itself is perfect on its known cells.
     self_scores = smokyslam("evaluate", map_yaml, "--truth", map_yaml, "--out", tmp_path / "s.json")
     assert self_scores.returncode == 0, self_scores.stderr
@@ -188,6 +196,20 @@ def test_simulate_a_floor_plan_and_a_ros1_bag(tmp_path):
     assert reader.summary().format.startswith("ROS1")
     counts = {s.topic: s.count for s in reader.summary().streams}
     assert counts["/ti_mmwave/radar_scan_pcl"] == 101
+    # Without the camera: the same radar, no images, the same truths.
+    fast = tmp_path / "fast.bag"
+    args = ("--world", plan, "--duration", "10", "--seed", "1", "--out", fast)
+    assert smokyslam("simulate", *args, "--sensors", "radar,imu").returncode == 0
+    quick = open_log(fast, load_config())
+    assert "/camera/image_raw" not in {s.topic for s in quick.summary().streams}
+    scans = [f for f in reader.frames(("radar",))]
+    assert all(
+        np.array_equal(a.points_xyz_m, b.points_xyz_m)
+        for a, b in zip(scans, quick.frames(("radar",)), strict=True)
+    )
+    assert np.array_equal(
+        quick.observed_ground_truth_map().cells, reader.observed_ground_truth_map().cells
+    )
 
 
 def test_ti_bag_runs_radar_only_with_its_calibration(real_data_dir, tmp_path):

@@ -92,3 +92,21 @@ def test_error_index_agrees_with_the_saved_map(tmp_path):
     direct = evaluate_map(cells, spec, world.ground_truth_cells(), world.spec)
     from_file = evaluate_map(loaded.cells, loaded.spec, world.ground_truth_cells(), world.spec)
     assert from_file == pytest.approx(direct)
+
+
+def test_map_scores_nest_the_observed_truth_only_when_there_is_one():
+    from smokyslam.evaluation.map_metrics import map_scores
+    from smokyslam.types import GroundTruthMap
+
+    spec = GridSpec(origin_xy_m=(0.0, 0.0), resolution_m=0.1, shape=(10, 10))
+    truth = np.zeros((10, 10), dtype=np.int8)
+    truth[:, 0] = truth[:, 9] = 100
+    observed = truth.copy()
+    observed[:, 5:] = -1  # the walk saw only the left half
+    cells = np.where(np.arange(10)[None, :] < 5, truth, -1).astype(np.int8)
+    full = GroundTruthMap(0.0, truth, spec)
+    assert set(map_scores(cells, spec, full)) == KEYS
+    both = map_scores(cells, spec, full, GroundTruthMap(0.0, observed, spec))
+    assert set(both) == KEYS | {"observed"} and set(both["observed"]) == KEYS
+    assert both["occupied_recall"] == pytest.approx(0.5)
+    assert both["observed"]["occupied_recall"] == 1.0 and both["observed"]["error_index"] == 0.0

@@ -211,6 +211,10 @@ def test_fused_run_writes_every_output(runs):
     )
     assert set(metrics["maps"]) == {"radar_sparse", "visual"}
     assert 0.0 < metrics["maps"]["visual"]["occupied_precision"] <= 1.0
+    for scores in metrics["maps"].values():  # the observed truth is scored too, same keys
+        assert set(scores["observed"]) == set(scores) - {"observed"}
+        # the walk saw fewer walls than the building has: recall of seen walls is higher
+        assert scores["observed"]["occupied_recall"] > scores["occupied_recall"]
     factors = metrics["factors"]
     assert factors["radar"] == metrics["keyframes"] - 1 > 50
     assert factors["camera"] > 10

@@ -71,6 +71,10 @@ class LogReader(Protocol):
         """The ground-truth occupancy grid, when the log has one."""
         ...
 
+    def observed_ground_truth_map(self) -> GroundTruthMap | None:
+        """The part of the ground truth a lidar observed along the walk, when the log has it."""
+        ...
+
     def extrinsics(self) -> Extrinsics:
         """Sensor mounting (``T_base_radar``, ``T_base_camera``); identity when unknown."""
         ...

@@ -241,6 +241,9 @@ class CarmenReader:
     def ground_truth_map(self) -> GroundTruthMap | None:
         return None
 
+    def observed_ground_truth_map(self) -> GroundTruthMap | None:
+        return None
+
     def extrinsics(self) -> Extrinsics:
         return Extrinsics(T_base_radar=se3_from_se2(self.radar_mount))
 

@@ -114,9 +114,10 @@ class RosbagReader:
         """(stream, stamp_s from the log start, decoded message) of the named streams."""
         by_topic = {self.stream_topics[s]: s for s in streams if s in self.stream_topics}
         clocked = (*SENSOR_STREAMS, "ground_truth_pose")
+        once = {"tf_static", "ground_truth_map", "ground_truth_map_observed"}
         clock_topics = (
             []
-            if set(streams) <= {"tf_static", "ground_truth_map"}
+            if set(streams) <= once
             else [self.stream_topics[s] for s in clocked if s in self.stream_topics]
         )
         for topic, stamp_s, msg in self._file.messages(by_topic, clock_topics):
@@ -170,8 +171,16 @@ class RosbagReader:
     def ground_truth_map(self) -> GroundTruthMap | None:
         """The last usable ground-truth OccupancyGrid in the log, or None (an unusable one, e.g.
         with a NaN resolution, is left out with a warning)."""
+        return self._last_map("ground_truth_map")
+
+    def observed_ground_truth_map(self) -> GroundTruthMap | None:
+        """The ground truth a lidar recorded along the walk (``/ground_truth/map_observed``),
+        or None (real and older logs)."""
+        return self._last_map("ground_truth_map_observed")
+
+    def _last_map(self, stream: str) -> GroundTruthMap | None:
         latest = None
-        for _, stamp_s, msg in self._messages("ground_truth_map"):  # any damage: MessageError
+        for _, stamp_s, msg in self._messages(stream):  # any damage: MessageError
             try:
                 latest = ground_truth_map_from_msg(msg, stamp_s)
             except MessageError as exc:

@@ -37,20 +37,34 @@ def simulate(
     ] = "office",
     duration: Annotated[float, typer.Option(min=1.0, help="Seconds of walking.")] = 60.0,
     seed: Annotated[int, typer.Option(help="Seed for the world, the walk and the sensors.")] = 0,
+    sensors: Annotated[
+        str,
+        typer.Option(help="Sensors to record, e.g. radar,imu (no camera: many times faster)."),
+    ] = "radar,camera,imu",
     overwrite: Annotated[bool, typer.Option(help="Replace an existing log.")] = False,
     config: ConfigOption = None,
 ) -> None:
     """Simulate a walk through a building and record radar, camera, IMU and ground truth."""
+    from smokyslam.sim.simulate import parse_sensors
+    from smokyslam.sim.simulate import simulate as run_simulation
+
     if out.suffix not in (".mcap", ".bag"):
         raise ConfigError(f"--out must end in .mcap or .bag, got '{out.name}'")
+    chosen = parse_sensors(sensors)
     writable_file(out, "--out")
     cfg = effective_config(config)
     from smokyslam.progress import progress_bar
-    from smokyslam.sim.simulate import simulate as run_simulation
 
     with progress_bar(f"simulating {world}", duration) as update:
         result = run_simulation(
-            world, duration, seed, out, cfg, overwrite=overwrite, on_progress=update
+            world,
+            duration,
+            seed,
+            out,
+            cfg,
+            overwrite=overwrite,
+            on_progress=update,
+            sensors=chosen,
         )
     typer.echo(
         f"wrote {result.log_path}: {result.duration_s:.0f} s of {result.world.name}, "
@@ -103,24 +117,44 @@ def map_command(
 
     result = run_truth_mapping(log, cfg, out, overwrite=overwrite)
     for name, scores in result.metrics.get("maps", {}).items():
-        typer.echo(f"{name}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()))
+        typer.echo(f"{name}: " + _scores_line(scores))
+        if "observed" in scores:
+            typer.echo(f"{name} (observed truth): " + _scores_line(scores["observed"]))
     typer.echo(f"wrote {result.out_dir}/ in {result.wall_s:.1f} s")
+
+
+def _scores_line(scores: dict) -> str:
+    return ", ".join(f"{k} {v:.3f}" for k, v in scores.items() if not isinstance(v, dict))
 
 
 def evaluate(
     map_yaml: Annotated[Path, typer.Argument(help="A map_server map YAML to score.")],
-    truth: Annotated[Path, typer.Option(help="Ground truth: a log with a map, or a map YAML.")],
+    truth: Annotated[
+        Path,
+        typer.Option(help="Ground truth: a log with a map, a map YAML, or a .ply/.pcd cloud."),
+    ],
+    z_band: Annotated[
+        str | None,
+        typer.Option(help="LO:HI metres: the height band of a cloud truth that holds walls."),
+    ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="JSON file for the metrics.")
     ] = None,
     config: ConfigOption = None,
 ) -> None:
-    """Score a saved map against ground truth (error index, occupied precision/recall/F1/IoU)."""
+    """Score a saved map against ground truth (error index, occupied precision/recall/F1/IoU;
+    against a simulated log also against the truth its lidar observed)."""
+    from smokyslam.evaluation.cloud_truth import parse_z_band
     from smokyslam.pipelines.evaluate_map import evaluate_map_file
 
     target = writable_file(out or map_yaml.with_name(map_yaml.stem + "_metrics.json"), "--out")
-    metrics = evaluate_map_file(map_yaml, truth, effective_config(config))
+    metrics = evaluate_map_file(map_yaml, truth, effective_config(config), parse_z_band(z_band))
     for key, value in metrics.items():
-        typer.echo(f"{key:20s} {value:.4f}")
+        if isinstance(value, dict):
+            typer.echo(f"{key} truth:")
+            for inner, number in value.items():
+                typer.echo(f"  {inner:18s} {number:.4f}")
+        else:
+            typer.echo(f"{key:20s} {value:.4f}")
     target.write_text(json.dumps(metrics, indent=2) + "\n")
     typer.echo(f"wrote {target}")

@@ -89,7 +89,10 @@ def summary_line(metrics: dict) -> str:
             text += f", sim2 {trajectory['ate_sim2_rmse_m']:.3f} m"
         parts.append(text + f", lost {trajectory['lost_frames']}/{trajectory['frames']} frames")
     for name, scores in metrics.get("maps", {}).items():
-        parts.append(f"{name} error index {scores['error_index']:.3f}")
+        text = f"{name} error index {scores['error_index']:.3f}"
+        if "observed" in scores:
+            text += f" (observed {scores['observed']['error_index']:.3f})"
+        parts.append(text)
     if metrics.get("realtime_factor"):
         parts.append(f"{metrics['realtime_factor']:.1f}x real time")
     return "; ".join(parts)

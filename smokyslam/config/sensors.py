@@ -19,6 +19,9 @@ class TopicsConfig(_Section):
     imu: list[str] = Field(default_factory=lambda: ["/imu", "/sensor_platform/imu"])
     ground_truth_pose: list[str] = Field(default_factory=lambda: ["/ground_truth/pose"])
     ground_truth_map: list[str] = Field(default_factory=lambda: ["/ground_truth/map"])
+    ground_truth_map_observed: list[str] = Field(
+        default_factory=lambda: ["/ground_truth/map_observed"]
+    )
     tf_static: list[str] = Field(default_factory=lambda: ["/tf_static"])
 
 
@@ -114,6 +117,15 @@ class TrajectoryConfig(_Section):
     ground_truth_rate_hz: float = 50.0
 
 
+class LidarConfig(_Section):
+    """The ideal 2D lidar whose walk makes the observed ground truth (``sim/observed.py``)."""
+
+    beams: int = Field(1440, ge=8, description="beams over 360 degrees (0.25 degree steps)")
+    max_range_m: float = Field(20.0, gt=0.0)
+    spacing_m: float = Field(0.5, gt=0.0, description="a scan each time the walk moved this far")
+    turn_rad: float = Field(0.4, gt=0.0, description="or turned this far")
+
+
 class SimulationConfig(_Section):
     """Everything ``smokyslam simulate`` needs beyond the command-line arguments."""
 
@@ -123,6 +135,7 @@ class SimulationConfig(_Section):
     radar: RadarModelConfig = RadarModelConfig()
     camera: CameraModelConfig = CameraModelConfig()
     imu: ImuModelConfig = ImuModelConfig()
+    lidar: LidarConfig = LidarConfig()
 
 
 class CarmenConfig(_Section):

@@ -19,6 +19,8 @@ Empty sets score 0 (never NaN, so metrics stay valid JSON).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.ndimage import binary_dilation
 
@@ -101,10 +103,20 @@ def evaluate_map(
     return metrics
 
 
-def map_scores(cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap) -> dict[str, float]:
-    """The contract's five map metrics of trinary cells over ``spec`` against a true map."""
+def map_scores(
+    cells: np.ndarray,
+    spec: GridSpec,
+    truth: GroundTruthMap,
+    observed: GroundTruthMap | None = None,
+) -> dict[str, Any]:
+    """The contract's five map metrics of trinary cells over ``spec`` against a true map;
+    with the ``observed`` truth (what a lidar saw along the walk) the same five again, under
+    ``observed``."""
     scores = evaluate_map(cells, spec, truth.cells, truth.spec)
-    return {key: scores[key] for key in MAP_METRIC_KEYS}
+    out: dict[str, Any] = {key: scores[key] for key in MAP_METRIC_KEYS}
+    if observed is not None:
+        out["observed"] = map_scores(cells, spec, observed)
+    return out
 
 
 def wall_agreement(

@@ -96,7 +96,7 @@ def run_log(
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         evaluation = evaluate_source(estimate, truth, source)
         write_trajectory(out, source, estimate, evaluation, truth, gt_map)
-        write_maps(out, estimate, evaluation, gt_map)
+        write_maps(out, estimate, evaluation, gt_map, reader.observed_ground_truth_map())
         record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
         if problems := reader.problems():
             out.update_metrics({"log": problems})

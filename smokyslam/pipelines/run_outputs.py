@@ -65,15 +65,18 @@ def write_maps(
     estimate: RunEstimate,
     evaluation: RunEvaluation,
     gt_map: GroundTruthMap | None,
+    observed: GroundTruthMap | None = None,
 ) -> None:
     """Every online map drawn in the output frame as ``maps/NAME.*``; scored (``maps`` in
-    ``metrics.json``) when the log has a true map and the run could be aligned to it."""
+    ``metrics.json``, and ``maps.NAME.observed`` against the ``observed`` truth) when the log
+    has a true map and the run could be aligned to it."""
     path_xy = evaluation.to_truth.apply(estimate.poses_world_base)[:, :2]
     scored = gt_map is not None and evaluation.trajectory is not None
     for name, grid in estimate.maps.render(evaluation.pose_truth_map).items():
         cells = grid.to_cells()
         if out.write_map(name, cells, grid.spec, gt_map, path_xy) is not None and scored:
-            out.update_metrics({"maps": {name: map_scores(cells, grid.spec, gt_map)}})
+            scores = map_scores(cells, grid.spec, gt_map, observed)
+            out.update_metrics({"maps": {name: scores}})
 
 
 def record_results(

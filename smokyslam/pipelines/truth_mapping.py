@@ -57,7 +57,8 @@ def run_truth_mapping(
         if gt_map is None:
             logger.warning("%s has no ground-truth map: no map metrics", log_path)
         elif written is not None:
-            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map)}}
+            observed = reader.observed_ground_truth_map()
+            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map, observed)}}
         wall_s = time.perf_counter() - started
         out.update_metrics({**metrics, "wall_s": wall_s})
         return TruthMappingResult(grid, metrics, wall_s, out.root)

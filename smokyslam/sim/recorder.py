@@ -55,7 +55,7 @@ EPOCH_OFFSET_NS = 1_700_000_000 * 1_000_000_000
 """Log start on the wall clock (2023-11-14 22:13:20 UTC), added to every ``stamp_s``."""
 
 _ROS2_PLUGINS = {".mcap": StoragePlugin.MCAP, ".db3": StoragePlugin.SQLITE3}
-_LATCHED_STREAMS = frozenset({"tf_static", "ground_truth_map"})
+_LATCHED_STREAMS = frozenset({"tf_static", "ground_truth_map", "ground_truth_map_observed"})
 _ZERO_TIME = _QosTime(0, 0)
 _LATCHED_QOS = Qos(
     QosHistory.KEEP_LAST,
@@ -179,10 +179,12 @@ class LogWriter:
         stamp_ns = stamp_ns_from_s(pose.stamp_s)
         self._write("ground_truth_pose", self._builder.pose_stamped(pose, stamp_ns), stamp_ns)
 
-    def write_ground_truth_map(self, map: GroundTruthMap) -> None:
-        """The ground-truth OccupancyGrid (100 / 0 / -1) in map."""
+    def write_ground_truth_map(self, map: GroundTruthMap, observed: bool = False) -> None:
+        """The ground-truth OccupancyGrid (100 / 0 / -1) in map; ``observed``: the one a lidar
+        recorded along the walk (``sim/observed.py``), on its own topic."""
         stamp_ns = stamp_ns_from_s(map.stamp_s)
-        self._write("ground_truth_map", self._builder.occupancy_grid(map, stamp_ns), stamp_ns)
+        stream = "ground_truth_map_observed" if observed else "ground_truth_map"
+        self._write(stream, self._builder.occupancy_grid(map, stamp_ns), stamp_ns)
 
     def write_tf_static(self, extrinsics: Extrinsics, stamp_s: float) -> None:
         """base_link -> radar and base_link -> camera on /tf_static."""

@@ -19,6 +19,7 @@ from smokyslam.errors import SmokySlamError
 from smokyslam.rig import camera_mount, radar_mount, rig_extrinsics, sensor_poses, sensor_velocities
 from smokyslam.sim.camera import CameraRenderer
 from smokyslam.sim.imu import simulate_imu
+from smokyslam.sim.observed import lidar_poses, observed_truth_cells
 from smokyslam.sim.planner import plan_walk
 from smokyslam.sim.radar import RadarModel
 from smokyslam.sim.recorder import LogWriter
@@ -52,8 +53,27 @@ class SimulationResult:
         return self.duration_s / max(self.wall_s, 1e-9)
 
 
+_NONE = np.zeros(0)
+
+
 def _stamps(rate_hz: float, duration_s: float) -> np.ndarray:
     return np.arange(0.0, duration_s + 1e-9, 1.0 / rate_hz)
+
+
+SENSORS = ("radar", "camera", "imu")
+"""The simulated sensors; ground truth (poses, maps, transforms) is always recorded."""
+
+
+def parse_sensors(text: str) -> frozenset[str]:
+    """``"radar,imu"`` as a set of :data:`SENSORS` (camera rendering dominates the time: a
+    log without it simulates many times faster)."""
+    names = frozenset(part.strip() for part in text.split(",") if part.strip())
+    unknown = sorted(names - set(SENSORS))
+    if unknown or not names:
+        raise SmokySlamError(
+            f"--sensors takes a comma-separated subset of {', '.join(SENSORS)}, got '{text}'"
+        )
+    return names
 
 
 def simulate(
@@ -64,8 +84,10 @@ def simulate(
     config: SmokySlamConfig,
     overwrite: bool = False,
     on_progress: ProgressCallback | None = None,
+    sensors: frozenset[str] = frozenset(SENSORS),
 ) -> SimulationResult:
-    """Simulate a walk through ``world_name`` for ``duration_s``; write the log to ``out_path``."""
+    """Simulate a walk through ``world_name`` for ``duration_s``; write the log to ``out_path``
+    with the named ``sensors``."""
     if duration_s <= 0:
         raise SmokySlamError(f"duration must be positive, got {duration_s}")
     started = time.perf_counter()
@@ -78,9 +100,11 @@ def simulate(
     radar = RadarModel(sim.radar, world)
     camera = CameraRenderer(world, sim.camera, config.rig.camera_height_m, seed)
     imu_samples = simulate_imu(trajectory, sim.imu, rng)
-    radar_stamps = _stamps(sim.radar.rate_hz, duration_s)
-    camera_stamps = _stamps(sim.camera.rate_hz, duration_s)
+    radar_stamps = _stamps(sim.radar.rate_hz, duration_s) if "radar" in sensors else _NONE
+    camera_stamps = _stamps(sim.camera.rate_hz, duration_s) if "camera" in sensors else _NONE
+    imu_samples = imu_samples if "imu" in sensors else []
     truth_stamps = _stamps(sim.trajectory.ground_truth_rate_hz, duration_s)
+    progress_kind = 2 if "radar" in sensors else 3 if "camera" in sensors else 0
 
     schedule = sorted(
         [(t, 0, i) for i, t in enumerate(truth_stamps)]
@@ -93,6 +117,9 @@ def simulate(
         trajectory, radar_stamps, radar_mount(config.rig)
     )
     camera_poses = sensor_poses(trajectory.pose_at(camera_stamps), camera_mount(config.rig))
+    lidar = lidar_poses(
+        trajectory.pose_at(_stamps(10.0, duration_s)), sim.lidar.spacing_m, sim.lidar.turn_rad
+    )
 
     points = 0
     with log_writer as writer:
@@ -100,7 +127,13 @@ def simulate(
         writer.write_ground_truth_map(
             GroundTruthMap(stamp_s=0.0, cells=world.ground_truth_cells(), spec=world.spec)
         )
+        writer.write_ground_truth_map(
+            GroundTruthMap(0.0, observed_truth_cells(world, lidar, sim.lidar), world.spec),
+            observed=True,
+        )
         for stamp_s, kind, i in schedule:
+            if kind == progress_kind and on_progress is not None:
+                on_progress(stamp_s, duration_s)
             if kind == 0:
                 writer.write_ground_truth_pose(GroundTruthPose(stamp_s, truth_poses[i]))
             elif kind == 1:
@@ -113,8 +146,6 @@ def simulate(
                 image, depth_m = camera.render(camera_poses[i])
                 frame = CameraFrame(stamp_s, image, camera.intrinsics, depth_m)
                 writer.write_camera(frame, depth_scale=sim.camera.depth_scale)
-                if on_progress is not None:
-                    on_progress(stamp_s, duration_s)
     wall_s = time.perf_counter() - started
     log.info("simulated %.1f s in %.1f s", duration_s, wall_s)
     return SimulationResult(
