@@ -55,3 +55,20 @@ class RunInterruptedError(SmokySlamError):
 
 class OutputError(SmokySlamError):
     """An output folder cannot be used (it holds an earlier run, or cannot be written)."""
+
+
+class UpsamplerError(SmokySlamError):
+    """The up-sampler cannot be used: its weights are missing, corrupt or not ours, or the map
+    gives it nothing to work on."""
+
+
+class TrainingInterruptedError(UpsamplerError):
+    """The user stopped training (Ctrl-C); the last checkpoint is intact."""
+
+    def __init__(self, checkpoint: object, epoch: int) -> None:
+        where = f"the checkpoint of epoch {epoch} is {checkpoint}" if epoch else "no epoch done"
+        super().__init__(f"interrupted: {where}; rerun with --resume to continue")
+
+
+class FusionError(SmokySlamError):
+    """Maps cannot be registered or fused: one has no known cell, or they cannot overlap."""

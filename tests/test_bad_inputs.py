@@ -121,7 +121,7 @@ def test_all_nan_radar_scans_give_an_empty_map_not_a_crash(corridor, tmp_path):
     )
     ran(out)
     kept = metrics(tmp_path)
-    assert kept["empty_maps"] == ["radar_sparse"] and "maps" not in kept
+    assert kept["empty_maps"] == ["radar_sparse", "radar_dense"] and "maps" not in kept
     assert kept["trajectory"]["lost_frames"] == kept["trajectory"]["frames"] == 151
     assert (tmp_path / "trajectory.tum").is_file() and not (
         tmp_path / "maps/radar_sparse.pgm"
@@ -165,7 +165,7 @@ def test_losing_every_radar_return_is_a_result(corridor, tmp_path, smoke):
 def test_losing_every_radar_return_on_the_real_ti_bag(real_data_dir, tmp_path):
     bag = real_data_dir / "ti_mmwave_rospkg_demo.bag"
     ran(smokyslam("run", bag, "--odometry", "fused", "--radar-loss", "1", "--out", tmp_path))
-    assert metrics(tmp_path)["empty_maps"] == ["radar_sparse"]
+    assert metrics(tmp_path)["empty_maps"] == ["radar_sparse", "radar_dense"]
 
 
 # ---------------------------------------------------------------- sizes

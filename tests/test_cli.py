@@ -273,7 +273,8 @@ def test_a_folder_holding_a_run_is_refused_without_overwrite(office_log, tmp_pat
     assert replaced.returncode == 0, replaced.stderr
     metrics = json.loads((out_dir / "metrics.json").read_text())
     assert metrics["odometry"]["source"] == "dead-reckoning" and set(metrics["maps"]) == {
-        "radar_sparse"
+        "radar_sparse",
+        "radar_dense",
     }
     assert not (out_dir / "maps/visual.pgm").exists()  # nothing of the camera run survives
     assert (out_dir / "notes.txt").read_text() == "mine"

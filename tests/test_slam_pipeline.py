@@ -201,7 +201,7 @@ def test_fused_run_writes_every_output(runs):
     out = runs["fused"].out_dir
     for name in ("trajectory.tum", "trajectory_kitti.txt", "ground_truth.tum", "config.yaml"):
         assert (out / name).stat().st_size > 0
-    for name in ("radar_sparse", "visual"):
+    for name in ("radar_sparse", "radar_dense", "visual", "fused"):
         assert {p.suffix for p in (out / "maps").glob(f"{name}.*")} >= {".pgm", ".yaml"}
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["odometry"]["source"] == "fused"
@@ -209,7 +209,9 @@ def test_fused_run_writes_every_output(runs):
     assert metrics["realtime_factor"] == pytest.approx(
         metrics["duration_s"] / metrics["wall_s"], rel=1e-9
     )
-    assert set(metrics["maps"]) == {"radar_sparse", "visual"}
+    assert set(metrics["maps"]) == {"radar_sparse", "radar_dense", "visual", "fused"}
+    assert 0.5 <= metrics["fusion"]["trust_mean"] <= 1.0  # clean camera: t near t_clear
+    assert metrics["upsample"]["refreshes"] >= 3
     assert 0.0 < metrics["maps"]["visual"]["occupied_precision"] <= 1.0
     for scores in metrics["maps"].values():  # the observed truth is scored too, same keys
         assert set(scores["observed"]) == set(scores) - {"observed"}

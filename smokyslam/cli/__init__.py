@@ -1,6 +1,7 @@
 """The ``smokyslam`` command line: glue over library functions that return results.
 
-Commands live in ``log_commands.py`` (logs, maps, configs) and ``run_commands.py`` (runs,
+Commands live in ``log_commands.py`` (logs, maps, configs), ``map_commands.py`` (the
+up-sampler), ``fusion_commands.py`` (registration, fusion) and ``run_commands.py`` (runs,
 comparisons, demo, bench) as plain functions, registered on the app here. Heavy modules are
 imported inside each command, after its arguments are validated. Known errors
 (SmokySlamError) become one line on stderr and exit code 1, never a traceback.
@@ -15,8 +16,8 @@ from typing import Annotated
 import typer
 
 from smokyslam import __version__
-from smokyslam.cli import log_commands, run_commands
-from smokyslam.errors import RunInterruptedError, SmokySlamError
+from smokyslam.cli import fusion_commands, log_commands, map_commands, run_commands
+from smokyslam.errors import RunInterruptedError, SmokySlamError, TrainingInterruptedError
 
 app = typer.Typer(
     name="smokyslam",
@@ -33,6 +34,11 @@ COMMANDS = {
     "compare": run_commands.compare,
     "map": log_commands.map_command,
     "evaluate": log_commands.evaluate,
+    "upsample": map_commands.upsample,
+    "train-upsampler": map_commands.train_upsampler,
+    "register": fusion_commands.register,
+    "fuse": fusion_commands.fuse,
+    "paper-table": fusion_commands.paper_table,
     "bench": run_commands.bench,
     "demo": run_commands.demo,
     "dump-config": log_commands.dump_config,
@@ -68,7 +74,7 @@ def main() -> None:
     """Console entry point: one line for any known error, and for Ctrl-C (exit code 130)."""
     try:
         app()
-    except RunInterruptedError as exc:  # the run kept what it had computed
+    except (RunInterruptedError, TrainingInterruptedError) as exc:  # what was done is kept
         typer.echo(str(exc), err=True)
         sys.exit(130)
     except SmokySlamError as exc:

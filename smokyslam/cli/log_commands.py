@@ -106,6 +106,9 @@ def map_command(
     radar_loss: RadarLossOption = None,
     camera_noise: CameraNoiseOption = None,
     haze: HazeOption = None,
+    upsample: Annotated[
+        bool, typer.Option(help="Also up-sample it (maps/radar_dense.*, upsample.method).")
+    ] = False,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
@@ -115,7 +118,7 @@ def map_command(
     cfg = effective_config(config, smoke_overrides(smoke, radar_loss, camera_noise, haze))
     from smokyslam.pipelines.truth_mapping import run_truth_mapping
 
-    result = run_truth_mapping(log, cfg, out, overwrite=overwrite)
+    result = run_truth_mapping(log, cfg, out, overwrite=overwrite, upsample_map=upsample)
     for name, scores in result.metrics.get("maps", {}).items():
         typer.echo(f"{name}: " + _scores_line(scores))
         if "observed" in scores:

@@ -26,6 +26,7 @@ from smokyslam.config.estimation import (
     ScaleConfig,
     SlamConfig,
 )
+from smokyslam.config.fusion import FusionConfig, RegistrationConfig, TrustConfig
 from smokyslam.config.sensors import (
     CameraModelConfig,
     CarmenConfig,
@@ -39,6 +40,11 @@ from smokyslam.config.sensors import (
     TopicsConfig,
     TrajectoryConfig,
 )
+from smokyslam.config.upsample import (
+    UpsampleConfig,
+    UpsamplerModelConfig,
+    UpsamplerTrainingConfig,
+)
 from smokyslam.errors import ConfigError
 
 __all__ = [
@@ -47,6 +53,7 @@ __all__ = [
     "CameraModelConfig",
     "CameraOdometryConfig",
     "CarmenConfig",
+    "FusionConfig",
     "ImuModelConfig",
     "KeyframeConfig",
     "LidarConfig",
@@ -55,6 +62,7 @@ __all__ = [
     "MappingConfig",
     "RadarModelConfig",
     "RadarOdometryConfig",
+    "RegistrationConfig",
     "RigConfig",
     "ScaleConfig",
     "SimulationConfig",
@@ -63,6 +71,10 @@ __all__ = [
     "SmokySlamConfig",
     "TopicsConfig",
     "TrajectoryConfig",
+    "TrustConfig",
+    "UpsampleConfig",
+    "UpsamplerModelConfig",
+    "UpsamplerTrainingConfig",
     "config_to_yaml",
     "deep_update",
     "load_config",
@@ -85,6 +97,8 @@ class SmokySlamConfig(Section):
     camera_odometry: CameraOdometryConfig = CameraOdometryConfig()
     backend: BackendConfig = BackendConfig()
     slam: SlamConfig = SlamConfig()
+    upsample: UpsampleConfig = UpsampleConfig()
+    fusion: FusionConfig = FusionConfig()
 
 
 def deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

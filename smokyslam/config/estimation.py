@@ -96,6 +96,18 @@ class MappingConfig(_Section):
         0.05, gt=0.0, description="a keyframe moved this far: re-render the maps"
     )
     remap_rotation_rad: float = Field(0.01, gt=0.0, description="or turned this far")
+    visual_cleaning: bool = Field(
+        False, description="clean visual points before flattening (open3d: voxel, outliers)"
+    )
+    visual_voxel_m: float = Field(
+        0.0, ge=0.0, description="cleaning: one point per voxel of this side (0: no voxels)"
+    )
+    visual_outlier_neighbours: int = Field(
+        20, ge=2, description="cleaning: neighbours of the statistical outlier test"
+    )
+    visual_outlier_std_ratio: float = Field(
+        2.0, gt=0.0, description="cleaning: outliers lie this many deviations above the mean"
+    )
 
     @model_validator(mode="after")
     def _thresholds_in_order(self) -> MappingConfig:

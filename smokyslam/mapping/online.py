@@ -8,6 +8,11 @@ moment.
   when the grid is read, so a burst of closures costs one redraw.
 - ``visual``: camera keyframe landmarks, kept in base_link and flattened on the trajectory's
   current poses whenever the grid is read.
+- ``radar_dense``: the radar grid up-sampled (``upsample/online.py``): refreshed in the
+  background during the run (:meth:`OnlineMaps.maps` gives the latest), made afresh from the
+  rendered radar grid by :meth:`OnlineMaps.render`.
+- ``fused``: the radar map (dense, else sparse) and the visual map fused by the trust index
+  measured at the camera keyframes (``fusion/``), whenever both exist and the maps are read.
 
 :meth:`OnlineMaps.maps` returns a snapshot of every grid (copies later updates leave alone);
 :meth:`OnlineMaps.render` draws them afresh on the current poses moved by a rigid transform
@@ -17,16 +22,23 @@ the same poses and keyframes gives.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from smokyslam.config import MappingConfig
-from smokyslam.geometry import se2_between, se2_compose
+from smokyslam.fusion.trust import trust_grid
+from smokyslam.geometry import GridSpec, se2_between, se2_compose
 from smokyslam.mapping.grid import OccupancyGrid
 from smokyslam.mapping.radar_mapper import RadarGridMapper, get_radar_mapper
 from smokyslam.mapping.visual_map import VisualKeyframes, visual_map_on_poses
 from smokyslam.types import RadarScan
+
+if TYPE_CHECKING:
+    from smokyslam.fusion.fuse import FusedMap
+    from smokyslam.fusion.fuser import MapFuser
+    from smokyslam.upsample.infer import DenseMap
+    from smokyslam.upsample.online import DenseRefresher
 
 IDENTITY = np.zeros(3)
 
@@ -115,11 +127,17 @@ class OnlineMaps:
         poses: PoseSource,
         pose_base_radar: np.ndarray | None,
         T_base_camera: np.ndarray | None,
+        dense: DenseRefresher | None = None,
+        fuser: MapFuser | None = None,
     ) -> None:
         """``pose_base_radar``: (3,) levelled radar mount, None for no radar map.
-        ``T_base_camera``: (4, 4) camera mount, None for no visual map."""
+        ``T_base_camera``: (4, 4) camera mount, None for no visual map. ``dense``: the
+        up-sampler of the radar map (``radar_dense``), None for none. ``fuser``: measures the
+        visual map's trust and fuses it with the radar map (``fused``), None for none."""
         self._config = config
         self._poses = poses
+        self.dense = dense if pose_base_radar is not None else None
+        self.fuser = fuser if T_base_camera is not None else None
         self._radar = None
         if pose_base_radar is not None:
             self._radar = KeyframeRadarMap(
@@ -139,6 +157,9 @@ class OnlineMaps:
         """Backend keyframe ``index`` (they come in order) with its levelled radar scan."""
         if self._radar is not None:
             self._radar.insert(scan, self._poses.keyframe_pose(index))
+            if self.dense is not None and self.dense.due(scan.stamp_s):
+                grid = self._radar.grid(self._poses.keyframe_poses())
+                self.dense.refresh(scan.stamp_s, grid.to_cells(), grid.spec)
 
     def add_camera_keyframe(
         self,
@@ -146,32 +167,67 @@ class OnlineMaps:
         T_world_camera: np.ndarray,
         landmarks_world: np.ndarray,
         metres_per_unit: float,
+        camera_trust: float,
     ) -> None:
-        """A camera keyframe's landmarks (camera odometry world and units, see
-        :meth:`VisualKeyframes.add`)."""
+        """A camera keyframe's landmarks (camera odometry world and units) and the camera's
+        trust in it (see :meth:`VisualKeyframes.add`)."""
         if self._visual is not None:
-            self._visual.add(stamp_s, T_world_camera, landmarks_world, metres_per_unit)
+            self._visual.add(
+                stamp_s, T_world_camera, landmarks_world, metres_per_unit, camera_trust
+            )
 
-    def maps(self) -> dict[str, OccupancyGrid]:
+    def maps(self) -> dict[str, OccupancyGrid | DenseMap | FusedMap]:
         """A snapshot of every grid with content so far, by map name, in the map frame."""
         snapshot = {}
         if self._radar is not None and len(self._radar):
             snapshot["radar_sparse"] = self._radar.grid(self._poses.keyframe_poses()).copy()
+            if self.dense is not None and self.dense.latest is not None:
+                snapshot["radar_dense"] = self.dense.latest
         if self._visual is not None and len(self._visual):
             snapshot["visual"] = self._visual_grid(IDENTITY)
+        self._add_fused(snapshot, IDENTITY)
         return snapshot
 
-    def render(self, T_target_map: np.ndarray) -> dict[str, OccupancyGrid]:
+    def render(self, T_target_map: np.ndarray) -> dict[str, OccupancyGrid | DenseMap | FusedMap]:
         """Every grid drawn afresh on the current poses moved by the rigid (3,) transform
         ``T_target_map`` [x_m, y_m, yaw_rad] (e.g. the run's alignment to ground truth)."""
         target = np.asarray(T_target_map, dtype=float)
         grids = {}
         if self._radar is not None and len(self._radar):
             poses = se2_compose(target, self._poses.keyframe_poses()).reshape(-1, 3)
-            grids["radar_sparse"] = self._radar.render(poses)
+            grids["radar_sparse"] = sparse = self._radar.render(poses)
+            if self.dense is not None:
+                grids["radar_dense"] = self.dense.final(sparse.to_cells(), sparse.spec)
         if self._visual is not None and len(self._visual):
             grids["visual"] = self._visual_grid(target)
+        self._add_fused(grids, target)
         return grids
+
+    def visual_trust(self, target: np.ndarray, spec: GridSpec) -> tuple[np.ndarray, float]:
+        """``(t grid over spec, the run's t)``: the trust index measured at the camera
+        keyframes, per cell they saw (the run's mean elsewhere), with the maps moved by the
+        rigid ``target``."""
+        t_keyframes = self.fuser.trust.radar_trust(np.asarray(self._visual.camera_trust))
+        t_run = float(t_keyframes.mean()) if len(t_keyframes) else 1.0
+        if not self.fuser.per_region:
+            return np.full(spec.shape, t_run), t_run
+        stamps_s, poses = self._poses.trajectory()
+        moved = se2_compose(target, poses).reshape(-1, 3)
+        points, _, keyframe = self._visual.world_points(stamps_s, moved)
+        return trust_grid(spec, t_keyframes, points[:, :2], keyframe, t_run), t_run
+
+    def _add_fused(self, grids: dict, target: np.ndarray) -> None:
+        """``grids["fused"]`` from the radar map and the visual map in ``grids``."""
+        if self.fuser is None or "visual" not in grids:
+            return
+        radar = grids.get(self.fuser.radar_map, grids.get("radar_sparse"))
+        if radar is None:
+            return
+        visual = grids["visual"]
+        trust, t_run = self.visual_trust(target, visual.spec)
+        grids["fused"] = self.fuser.fuse(
+            radar.to_cells(), radar.spec, visual.to_cells(), visual.spec, trust, t_run
+        )
 
     def _visual_grid(self, target: np.ndarray) -> OccupancyGrid:
         stamps_s, poses = self._poses.trajectory()

@@ -31,6 +31,7 @@ from smokyslam.backends.slam import SlamBackend
 from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
 from smokyslam.frontends.camera.result import CameraOdometryResult
 from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
+from smokyslam.fusion.trust import TrustModel
 from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage, Tracked
 from smokyslam.smoke import SmokeEmulator
@@ -52,7 +53,8 @@ class Stages:
     """The stages of one run. ``radar``: the radar frontend (None: no radar). ``camera``: the
     camera stage (None: no camera). ``camera_steps``: set when the camera carries the
     trajectory (camera-only); otherwise camera results feed the backend's camera factors.
-    ``visual_map``: camera keyframes feed the visual map."""
+    ``visual_map``: camera keyframes feed the visual map. ``trust``: the camera's trust from
+    its measured smoke, per visual keyframe."""
 
     smoke: SmokeEmulator
     radar: RadarFrontend | None
@@ -62,6 +64,7 @@ class Stages:
     maps: OnlineMaps
     recorder: Recorder
     visual_map: bool
+    trust: TrustModel
 
     @property
     def streams(self) -> tuple[str, ...]:
@@ -240,8 +243,16 @@ class RunLoop:
         if not (self.stages.visual_map and result.is_keyframe and len(result.landmarks_world)):
             return
         with self._clock.time("maps"):
+            quality = result.quality
+            camera_trust = self.stages.trust.camera_trust(
+                quality.impulse_fraction, quality.rms_contrast, not result.lost
+            )
             self.stages.maps.add_camera_keyframe(
-                result.stamp_s, result.T_world_camera, result.landmarks_world, metres_per_unit
+                result.stamp_s,
+                result.T_world_camera,
+                result.landmarks_world,
+                metres_per_unit,
+                float(camera_trust),
             )
 
     def _processed(self, stamp_s: float, scan: RadarScan | None) -> None:

@@ -96,7 +96,11 @@ def run_log(
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         evaluation = evaluate_source(estimate, truth, source)
         write_trajectory(out, source, estimate, evaluation, truth, gt_map)
-        write_maps(out, estimate, evaluation, gt_map, reader.observed_ground_truth_map())
+        observed = reader.observed_ground_truth_map()
+        write_maps(out, estimate, evaluation, gt_map, observed, spec.camera_only)
+        if (dense := estimate.maps.dense) is not None:
+            out.update_metrics({"upsample": dense.stats()})
+            dense.close()
         record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
         if problems := reader.problems():
             out.update_metrics({"log": problems})

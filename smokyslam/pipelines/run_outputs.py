@@ -15,12 +15,17 @@ from smokyslam.evaluation.map_metrics import map_scores
 from smokyslam.evaluation.run_evaluation import RunEvaluation
 from smokyslam.evaluation.trajectory_io import write_kitti, write_tum
 from smokyslam.evaluation.trajectory_plot import plot_trajectory
+from smokyslam.fusion.fuse import FUSED_MAP
+from smokyslam.fusion.trust import TRUST_SUFFIX, save_trust
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunEstimate
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
 from smokyslam.viz.rerun_recorder import Recorder
 
 logger = logging.getLogger(__name__)
+
+UNALIGNED_VISUAL = "visual_unaligned"
+"""A camera-only run's visual map in its own frame (``maps/visual_unaligned.*``)."""
 
 
 def write_trajectory(
@@ -66,17 +71,38 @@ def write_maps(
     evaluation: RunEvaluation,
     gt_map: GroundTruthMap | None,
     observed: GroundTruthMap | None = None,
+    keep_unaligned: bool = False,
 ) -> None:
     """Every online map drawn in the output frame as ``maps/NAME.*``; scored (``maps`` in
     ``metrics.json``, and ``maps.NAME.observed`` against the ``observed`` truth) when the log
-    has a true map and the run could be aligned to it."""
+    has a true map and the run could be aligned to it. The visual map's measured trust lies
+    beside it (``maps/visual.trust.npz``). ``keep_unaligned``: also the visual map in the
+    estimate's own frame, as the camera placed it (``maps/visual_unaligned.*``), for
+    registration onto a radar map (``fuse``, ``paper-table``)."""
     path_xy = evaluation.to_truth.apply(estimate.poses_world_base)[:, :2]
     scored = gt_map is not None and evaluation.trajectory is not None
-    for name, grid in estimate.maps.render(evaluation.pose_truth_map).items():
+    rendered = estimate.maps.render(evaluation.pose_truth_map)
+    for name, grid in rendered.items():
         cells = grid.to_cells()
         if out.write_map(name, cells, grid.spec, gt_map, path_xy) is not None and scored:
             scores = map_scores(cells, grid.spec, gt_map, observed)
             out.update_metrics({"maps": {name: scores}})
+    if "visual" in rendered and estimate.maps.fuser is not None:
+        _write_trust(out, estimate, "visual", rendered["visual"].spec, evaluation.pose_truth_map)
+        if keep_unaligned:
+            own = estimate.maps.render(np.zeros(3))["visual"]
+            out.write_map(UNALIGNED_VISUAL, own.to_cells(), own.spec)
+            _write_trust(out, estimate, UNALIGNED_VISUAL, own.spec, np.zeros(3))
+    if FUSED_MAP in rendered:
+        out.update_metrics({"fusion": rendered[FUSED_MAP].summary()})
+
+
+def _write_trust(
+    out: OutputFolder, estimate: RunEstimate, name: str, spec, T_target_map: np.ndarray
+) -> None:
+    trust, t_run = estimate.maps.visual_trust(T_target_map, spec)
+    save_trust(out.path("maps", f"{name}{TRUST_SUFFIX}"), trust, t_run)
+    out.update_metrics({"fusion": {"trust_run": t_run}})
 
 
 def record_results(

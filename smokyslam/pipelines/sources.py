@@ -26,10 +26,12 @@ from smokyslam.frontends.camera.metric import MetricCameraSteps
 from smokyslam.frontends.camera.pose import planar_from_camera
 from smokyslam.frontends.radar.frontend import RadarKind, get_radar_frontend
 from smokyslam.frontends.readers.base import LogReader
+from smokyslam.fusion.fuser import MapFuser, get_trust_model
 from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.loop import Stages
 from smokyslam.smoke import SmokeEmulator
+from smokyslam.upsample.online import DenseRefresher
 from smokyslam.viz.rerun_recorder import Recorder
 
 logger = logging.getLogger(__name__)
@@ -94,11 +96,16 @@ def build_stages(
         loop_closures=source.loop_closures and config.slam.loop_closures,
     )
     visual_map = use_camera and (source.camera_only or config.slam.visual_map)
+    dense = None
+    if radar is not None and config.upsample.method != "none":
+        dense = DenseRefresher(config.upsample)  # loads the up-sampler in the background
     maps = OnlineMaps(
         config.mapping,
         backend,
         radar.pose_base_radar if radar is not None else None,
         extrinsics.T_base_camera if visual_map else None,
+        dense,
+        MapFuser(config.fusion),
     )
     camera = None
     if use_camera:  # last: it may start a worker process, which the loop stops
@@ -120,6 +127,7 @@ def build_stages(
         maps=maps,
         recorder=recorder,
         visual_map=visual_map,
+        trust=get_trust_model(config.fusion),
     )
 
 

@@ -20,6 +20,13 @@ from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.grid import OccupancyGrid
 from smokyslam.outputs import OutputFolder
 from smokyslam.smoke import SmokeEmulator
+from smokyslam.upsample.infer import DENSE_MAP, get_upsampler, upsample
+
+
+def _method(config: SmokySlamConfig) -> str:
+    """``map --upsample`` up-samples even when the config turns it off for runs."""
+    return "gan" if config.upsample.method == "none" else config.upsample.method
+
 
 logger = logging.getLogger(__name__)
 
@@ -33,11 +40,19 @@ class TruthMappingResult:
 
 
 def run_truth_mapping(
-    log_path: Path | str, config: SmokySlamConfig, out_dir: Path | str, overwrite: bool = False
+    log_path: Path | str,
+    config: SmokySlamConfig,
+    out_dir: Path | str,
+    overwrite: bool = False,
+    upsample_map: bool = False,
 ) -> TruthMappingResult:
-    """Build ``maps/radar_sparse`` from the log's (smoked) radar on its ground-truth poses;
-    score it against the log's true map."""
+    """Build ``maps/radar_sparse`` from the log's (smoked) radar on its ground-truth poses
+    (and with ``upsample_map`` its up-sampling, ``maps/radar_dense``); score them against the
+    log's true map (and the observed truth, where the log has it)."""
     started = time.perf_counter()
+    upsampler = None
+    if upsample_map:
+        upsampler = get_upsampler(config.upsample, _method(config))  # bad weights: now
     with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
         reader = open_log(log_path, config, require=("radar", "ground_truth_pose"))
@@ -48,17 +63,20 @@ def run_truth_mapping(
         frames = (smoke.apply(frame) for frame in reader.frames())
         gate = get_keyframe_gate(config.keyframes)
         grid = build_radar_map(frames, truth, reader.extrinsics(), config.mapping, gate)
-        cells = grid.to_cells()
-        gt_map = reader.ground_truth_map()
-        written = out.write_map(
-            "radar_sparse", cells, grid.spec, gt_map, truth.poses_world_base[:, :2]
-        )
-        metrics = {}
+        maps = {"radar_sparse": grid}
+        if upsampler is not None and min(grid.spec.shape) > 0:
+            maps[DENSE_MAP] = upsample(upsampler, grid.to_cells(), grid.spec)
+        gt_map, observed = reader.ground_truth_map(), reader.observed_ground_truth_map()
         if gt_map is None:
             logger.warning("%s has no ground-truth map: no map metrics", log_path)
-        elif written is not None:
-            observed = reader.observed_ground_truth_map()
-            metrics = {"maps": {"radar_sparse": map_scores(cells, grid.spec, gt_map, observed)}}
+        metrics: dict = {}
+        for name, drawn in maps.items():
+            cells = drawn.to_cells()
+            path_xy = truth.poses_world_base[:, :2]
+            written = out.write_map(name, cells, drawn.spec, gt_map, path_xy)
+            if gt_map is not None and written is not None:
+                scores = map_scores(cells, drawn.spec, gt_map, observed)
+                metrics.setdefault("maps", {})[name] = scores
         wall_s = time.perf_counter() - started
         out.update_metrics({**metrics, "wall_s": wall_s})
         return TruthMappingResult(grid, metrics, wall_s, out.root)

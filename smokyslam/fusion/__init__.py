@@ -1,0 +1,1 @@
+"""Map fusion: registering occupancy maps onto each other, then fusing them."""

@@ -1,0 +1,97 @@
+"""The fusion stage: a radar map and a visual map of one world frame, fused on their union.
+
+:class:`MapFuser` takes the two maps as trinary cells on their own grids (same resolution,
+cells aligned with the world origin, as every smokyslam grid is), draws both on the grid that
+covers them both, and fuses them (``fusion/fuse.py``) with the trust index: the one the config
+forces, or the measured one (``fusion/trust.py``), a grid over the visual map's cells or one
+value.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smokyslam.config.fusion import FusionConfig
+from smokyslam.errors import FusionError
+from smokyslam.fusion.fuse import FusedMap, MapValues, fuse_maps
+from smokyslam.fusion.trust import TrustModel
+from smokyslam.geometry import GridSpec
+from smokyslam.mapio import UNKNOWN
+from smokyslam.mapping.grid import resample_nearest
+
+
+def union_spec(a: GridSpec, b: GridSpec) -> GridSpec:
+    """The grid covering both ``a`` and ``b`` (same resolution), cells aligned with ``a``'s."""
+    if not np.isclose(a.resolution_m, b.resolution_m, rtol=1e-6):
+        raise FusionError(
+            f"maps of different resolution ({a.resolution_m} m, {b.resolution_m} m) share no "
+            "grid: register the visual map onto the radar map first"
+        )
+    res = a.resolution_m
+    ax0, ax1, ay0, ay1 = a.extent_m
+    bx0, bx1, by0, by1 = b.extent_m
+    # Whole cells of a's lattice, so a's own cells are copied unchanged.
+    ix0 = np.floor((min(ax0, bx0) - ax0) / res + 1e-6)
+    iy0 = np.floor((min(ay0, by0) - ay0) / res + 1e-6)
+    ix1 = np.ceil((max(ax1, bx1) - ax0) / res - 1e-6)
+    iy1 = np.ceil((max(ay1, by1) - ay0) / res - 1e-6)
+    origin = (ax0 + ix0 * res, ay0 + iy0 * res)
+    return GridSpec(origin, res, (int(iy1 - iy0), int(ix1 - ix0)))
+
+
+class MapFuser:
+    """Fuses (radar, visual) map pairs; verb :meth:`fuse`."""
+
+    def __init__(self, config: FusionConfig) -> None:
+        self.trust = get_trust_model(config)
+        self.per_region = config.trust_model.per_region
+        self.radar_map = config.radar_map
+        self.rule = config.rule
+        self.forced_trust = None if config.trust == "auto" else float(config.trust)
+        self.keep_trust = config.keep_trust
+        self.clip = config.log_odds_clip
+
+    def fuse(
+        self,
+        radar_cells: np.ndarray,
+        radar_spec: GridSpec,
+        visual_cells: np.ndarray,
+        visual_spec: GridSpec,
+        trust: float | np.ndarray | None,
+        default_trust: float | None = None,
+    ) -> FusedMap:
+        """The fused map on the union of the two grids.
+
+        trust: the measured trust index, one value or (rows, cols) over ``visual_spec``
+        (``default_trust`` beyond it); ignored when the config forces a value. FusionError
+        when neither gives one.
+        """
+        spec = union_spec(radar_spec, visual_spec)
+        radar = MapValues.from_cells(resample_nearest(radar_cells, radar_spec, spec, UNKNOWN), spec)
+        visual = MapValues.from_cells(
+            resample_nearest(visual_cells, visual_spec, spec, UNKNOWN), spec
+        )
+        return fuse_maps(
+            radar,
+            visual,
+            self._trust(trust, default_trust, visual_spec, spec),
+            self.rule,
+            self.keep_trust,
+            self.clip,
+        )
+
+    def _trust(self, trust, default_trust, visual_spec: GridSpec, spec: GridSpec):
+        if self.forced_trust is not None:
+            return self.forced_trust
+        if trust is None:
+            raise FusionError("no measured trust index for the visual map: give --trust T")
+        if np.ndim(trust) == 0:
+            return float(trust)
+        fill = float(np.mean(trust)) if default_trust is None else float(default_trust)
+        return resample_nearest(np.asarray(trust, dtype=float), visual_spec, spec, fill)
+
+
+def get_trust_model(config: FusionConfig) -> TrustModel:
+    """The trust formula's constants from the config."""
+    trust = config.trust_model
+    return TrustModel(trust.t_clear, trust.noise_blind, trust.contrast_clear)

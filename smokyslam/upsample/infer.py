@@ -1,0 +1,165 @@
+"""Up-sampling a sparse radar map into a dense one: the GAN's generator, or a classical
+baseline. Both take trinary cells (100 / 0 / -1) on a grid and give a dense value per cell
+(1 occupied, 0 free, 0.5 unknown).
+
+The generator runs as one fully convolutional pass over the whole map, inside a border of
+unknown cells (``margin_cells``) so the map's edge is read as unknown space, not as the
+convolutions' padding. The pass is anchored to the world grid: the network's stride
+(``2**depth`` cells) is counted from the world origin, not from the map's corner, so the same
+place gives the same result in a map cropped or extended anywhere. Maps larger than
+``max_pass_cells`` a side go in overlapping tiles blended by a smooth window; either way no
+seam runs along a tile border.
+
+The classical baseline closes gaps in the walls (morphological closing of occupied cells)
+and fills the unknown gaps between observed free rays (closing of the known cells).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from scipy.ndimage import binary_closing
+
+from smokyslam.config.upsample import UpsampleConfig
+from smokyslam.errors import UpsamplerError
+from smokyslam.geometry import GridSpec
+from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
+from smokyslam.upsample.encoding import cells_from_values, encode_cells
+from smokyslam.upsample.weights import UpsamplerWeights, load_weights
+
+METHODS = ("gan", "classical")
+
+DENSE_MAP = "radar_dense"
+"""The up-sampled radar map's name in every output folder (``maps/radar_dense.*``)."""
+
+
+@dataclass
+class DenseMap:
+    """An up-sampled map: ``values`` (rows, cols) float32 in [0, 1] over ``spec``."""
+
+    values: np.ndarray
+    spec: GridSpec
+    method: str
+
+    @property
+    def cells(self) -> np.ndarray:
+        """Trinary cells (map_server thresholds), as saved."""
+        return cells_from_values(self.values)
+
+    def to_cells(self) -> np.ndarray:
+        """As :attr:`cells` (the verb occupancy grids answer to, for writers of maps)."""
+        return self.cells
+
+
+class Upsampler(Protocol):
+    method: str
+
+    def values(self, cells: np.ndarray, spec: GridSpec) -> np.ndarray: ...
+
+
+def upsample(upsampler: Upsampler, cells: np.ndarray, spec: GridSpec) -> DenseMap:
+    """The dense map of trinary ``cells`` over ``spec``."""
+    return DenseMap(upsampler.values(cells, spec), spec, upsampler.method)
+
+
+class GanUpsampler:
+    """The trained generator, applied seamlessly to maps of any size."""
+
+    method = "gan"
+
+    def __init__(self, weights: UpsamplerWeights, margin_cells: int, max_pass_cells: int):
+        self.weights = weights
+        self.generator = weights.generator
+        self.stride = self.generator.stride
+        self.margin = margin_cells
+        self.max_pass = max(max_pass_cells, 4 * margin_cells + self.stride)
+
+    def values(self, cells: np.ndarray, spec: GridSpec) -> np.ndarray:
+        cells = np.asarray(cells)
+        if not (cells != UNKNOWN).any():
+            return np.full(cells.shape, 0.5, dtype=np.float32)
+        first = np.rint(np.asarray(spec.origin_xy_m) / spec.resolution_m).astype(np.int64)
+        if max(cells.shape) <= self.max_pass:
+            return self._pass(cells, first)
+        return self._tiled(cells, first)
+
+    def _pass(self, cells: np.ndarray, first_ixy: np.ndarray) -> np.ndarray:
+        """One pass over ``cells`` whose cell [0, 0] is world cell ``first_ixy``."""
+        import torch
+
+        (rows, cols), s, m = cells.shape, self.stride, self.margin
+        before = [m + int((first_ixy[1] - m) % s), m + int((first_ixy[0] - m) % s)]
+        after = [(-(before[0] + rows + m) % s) + m, (-(before[1] + cols + m) % s) + m]
+        padded = np.pad(encode_cells(cells), ((0, 0), (before[0], after[0]), (before[1], after[1])))
+        with torch.inference_mode():
+            logits = self.generator(torch.from_numpy(padded)[None])
+        values = torch.sigmoid(logits + self.weights.logit_offset)[0, 0].numpy()
+        return values[before[0] : before[0] + rows, before[1] : before[1] + cols].copy()
+
+    def _tiled(self, cells: np.ndarray, first_ixy: np.ndarray) -> np.ndarray:
+        """Overlapping tiles of ``max_pass`` cells, blended by a window that fades each tile
+        out over ``margin`` cells towards its borders."""
+        size, ramp = self.max_pass, max(self.margin, 1)
+        total = np.zeros(cells.shape, dtype=np.float64)
+        weight = np.zeros(cells.shape, dtype=np.float64)
+        for r0 in _tile_starts(cells.shape[0], size, size - 2 * ramp):
+            for c0 in _tile_starts(cells.shape[1], size, size - 2 * ramp):
+                tile = cells[r0 : r0 + size, c0 : c0 + size]
+                out = self._pass(tile, first_ixy + np.array([c0, r0]))
+                window = np.outer(_fade(tile.shape[0], ramp), _fade(tile.shape[1], ramp))
+                total[r0 : r0 + size, c0 : c0 + size] += window * out
+                weight[r0 : r0 + size, c0 : c0 + size] += window
+        return (total / weight).astype(np.float32)
+
+
+def _tile_starts(length: int, size: int, step: int) -> list[int]:
+    if length <= size:
+        return [0]
+    starts = list(range(0, length - size, step))
+    return [*starts, length - size]
+
+
+def _fade(length: int, ramp: int) -> np.ndarray:
+    """1 inside, a raised-cosine fall over ``ramp`` cells to each end (never quite 0)."""
+    distance = np.minimum(np.arange(length), np.arange(length)[::-1]) + 0.5
+    return np.clip(0.5 - 0.5 * np.cos(np.pi * np.minimum(distance / ramp, 1.0)), 1e-3, 1.0)
+
+
+class ClassicalUpsampler:
+    """Morphological closing of the walls and of the observed free space."""
+
+    method = "classical"
+
+    def __init__(self, closing_radius_cells: int, free_fill_radius_cells: int) -> None:
+        self.wall_disc = _disc(closing_radius_cells)
+        self.free_disc = _disc(free_fill_radius_cells)
+        self.pad = max(closing_radius_cells, free_fill_radius_cells) + 1
+
+    def values(self, cells: np.ndarray, spec: GridSpec) -> np.ndarray:
+        cells = np.pad(np.asarray(cells), self.pad, constant_values=UNKNOWN)
+        walls = binary_closing(cells == OCCUPIED, self.wall_disc)
+        known = binary_closing(cells != UNKNOWN, self.free_disc)
+        values = np.full(cells.shape, 0.5, dtype=np.float32)
+        values[known & ~walls & ((cells == FREE) | (cells == UNKNOWN))] = 0.0
+        values[walls] = 1.0
+        p = self.pad
+        return values[p:-p, p:-p].copy()
+
+
+def _disc(radius: int) -> np.ndarray:
+    """A digital disc: radius 1 is the 3 x 3 square, 2 the 5 x 5 less its corners."""
+    offsets = np.arange(-radius, radius + 1)
+    return offsets[:, None] ** 2 + offsets[None, :] ** 2 <= radius * (radius + 1)
+
+
+def get_upsampler(config: UpsampleConfig, method: str | None = None) -> Upsampler:
+    """The up-sampler the config (or ``method``) names; the GAN loads its weights now."""
+    method = method or config.method
+    if method == "gan":
+        weights = load_weights(config.weights)
+        return GanUpsampler(weights, config.margin_cells, config.max_pass_cells)
+    if method == "classical":
+        return ClassicalUpsampler(config.closing_radius_cells, config.free_fill_radius_cells)
+    raise UpsamplerError(f"unknown up-sampling method '{method}' (choose {', '.join(METHODS)})")

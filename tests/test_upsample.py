@@ -1,0 +1,189 @@
+"""The up-sampler: model, weights files, seamless inference, the classical baseline."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from smokyslam.config import UpsampleConfig, UpsamplerModelConfig, UpsamplerTrainingConfig
+from smokyslam.errors import UpsamplerError
+from smokyslam.geometry import GridSpec
+from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
+from smokyslam.sim.world import box_world
+from smokyslam.upsample.crops import CropSampler
+from smokyslam.upsample.dataset import MapPair
+from smokyslam.upsample.infer import ClassicalUpsampler, GanUpsampler, get_upsampler
+from smokyslam.upsample.weights import load_weights, save_weights
+
+torch = pytest.importorskip("torch")
+
+SMALL = UpsamplerModelConfig(base_channels=4, depth=3, max_channels=16)
+
+
+def _generator(model: UpsamplerModelConfig = SMALL, seed: int = 0):
+    from smokyslam.upsample.model import UNetGenerator
+
+    torch.manual_seed(seed)
+    return UNetGenerator(model.base_channels, model.depth, model.max_channels).eval()
+
+
+def _weights(tmp_path, model: UpsamplerModelConfig = SMALL):
+    path = save_weights(tmp_path / "w.pt", _generator(model), model, 0.0, {"command": "test"})
+    return load_weights(path)
+
+
+def _sparse_room(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(sparse, truth) of an 8 x 6 m room: the truth, with 70 % of its walls and a band of
+    its free space left unknown, as a sparse radar map leaves them."""
+    truth = box_world(8.0, 6.0).ground_truth_cells()
+    rng = np.random.default_rng(seed)
+    sparse = truth.copy()
+    sparse[(truth == OCCUPIED) & (rng.random(truth.shape) < 0.7)] = UNKNOWN
+    sparse[(truth == FREE) & (rng.random(truth.shape) < 0.5)] = UNKNOWN
+    return sparse, truth
+
+
+def test_a_tiny_model_learns_on_generated_pairs():
+    from smokyslam.upsample.model import UNetGenerator
+
+    torch.manual_seed(0)
+    pairs = [MapPair(*_sparse_room(seed), f"room {seed}") for seed in range(4)]
+    config = UpsamplerTrainingConfig(crop_cells=48, occupied_weight=3.0)
+    sampler = CropSampler(pairs, config, np.random.default_rng(0))
+    generator = UNetGenerator(8, 2, 32)
+    optimiser = torch.optim.Adam(generator.parameters(), 3e-3)
+    losses = []
+    for _ in range(60):
+        inputs, targets, weights = (torch.from_numpy(a) for a in sampler.batch(8))
+        value = torch.sigmoid(generator(inputs))
+        loss = (weights * (value - targets).abs()).sum() / weights.sum()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        losses.append(float(loss.detach()))
+    assert np.mean(losses[-10:]) < 0.5 * np.mean(losses[:5])
+
+
+def test_crops_keep_input_and_target_aligned_through_rotations_and_flips():
+    sparse, truth = _sparse_room()
+    config = UpsamplerTrainingConfig(crop_cells=32)
+    sampler = CropSampler([MapPair(sparse, truth, "room")], config, np.random.default_rng(1))
+    inputs, targets, weights = sampler.batch(64)
+    known_occupied = inputs[:, 0] == 1.0
+    assert known_occupied.any()
+    assert (targets[:, 0][known_occupied] == 1.0).all()  # an input wall is a target wall
+    assert (targets[:, 0][inputs[:, 0] == -1.0] == 0.0).all()
+    assert set(np.unique(weights)) <= {1.0, config.occupied_weight, config.unknown_weight}
+
+
+def test_weights_round_trip_and_give_the_same_map(tmp_path):
+    generator = _generator()
+    path = save_weights(tmp_path / "w.pt", generator, SMALL, -0.5, {"command": "smokyslam x"})
+    loaded = load_weights(path)
+    assert loaded.model == SMALL and loaded.training["command"] == "smokyslam x"
+    assert loaded.logit_offset == -0.5
+    x = torch.randn(1, 2, 32, 32)
+    with torch.inference_mode():
+        assert torch.equal(generator(x), loaded.generator(x))
+
+
+def test_the_shipped_weights_load_and_are_small():
+    from smokyslam.upsample.weights import shipped_weights_path
+
+    path = shipped_weights_path()
+    assert path.stat().st_size <= 20 * 2**20
+    weights = load_weights()
+    assert weights.training["command"].startswith("smokyslam train-upsampler")
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"", "not a readable weights file"),
+        (b"\x00" * 1000, "not a readable weights file"),
+        ("foreign", "not a smokyslam up-sampler weights file"),
+        ("truncated", "not a readable weights file"),
+        ("mismatched", "do not fit the model"),
+    ],
+)
+def test_bad_weights_files_are_one_clear_error(tmp_path, content, message):
+    path = tmp_path / "bad.pt"
+    if content == "foreign":
+        torch.save({"state_dict": {}}, path)
+    elif content == "truncated":
+        good = save_weights(tmp_path / "good.pt", _generator(), SMALL, 0.0, {})
+        path.write_bytes(good.read_bytes()[:5000])
+    elif content == "mismatched":
+        good = save_weights(tmp_path / "good.pt", _generator(), SMALL, 0.0, {})
+        payload = torch.load(good, weights_only=True)
+        payload["model"]["base_channels"] = 8
+        torch.save(payload, path)
+    else:
+        path.write_bytes(content)
+    with pytest.raises(UpsamplerError, match=message):
+        load_weights(path)
+    with pytest.raises(UpsamplerError, match="no such weights file"):
+        load_weights(tmp_path / "missing.pt")
+
+
+def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path):
+    """The pass is anchored to the world grid: the same place gives the same value in a map
+    extended by unknown cells on any side (any shift, not only multiples of the stride)."""
+    upsampler = GanUpsampler(_weights(tmp_path), margin_cells=24, max_pass_cells=1024)
+    sparse, _ = _sparse_room()
+    spec = GridSpec((-0.1, -0.1), 0.1, sparse.shape)
+    base = upsampler.values(sparse, spec)
+    for rows, cols in ((5, 0), (0, 3), (7, 11), (16, 16)):
+        bigger = np.pad(sparse, ((rows, 9), (cols, 2)), constant_values=UNKNOWN)
+        origin = (spec.origin_xy_m[0] - 0.1 * cols, spec.origin_xy_m[1] - 0.1 * rows)
+        shifted = upsampler.values(bigger, GridSpec(origin, 0.1, bigger.shape))
+        crop = shifted[rows : rows + sparse.shape[0], cols : cols + sparse.shape[1]]
+        assert np.abs(crop - base).max() < 1e-4
+
+
+def test_tiles_blend_into_the_one_pass_result(tmp_path):
+    weights = _weights(tmp_path)
+    rng = np.random.default_rng(3)
+    cells = rng.choice(np.array([OCCUPIED, FREE, UNKNOWN], dtype=np.int8), size=(150, 230))
+    spec = GridSpec((0.0, 0.0), 0.1, cells.shape)
+    whole = GanUpsampler(weights, 24, 1024).values(cells, spec)
+    tiled = GanUpsampler(weights, 24, 64).values(cells, spec)
+    assert tiled.shape == whole.shape
+    assert np.abs(tiled - whole).mean() < 0.01 and np.abs(tiled - whole).max() < 0.1
+    # No seam: neighbouring cells differ no more along tile borders than anywhere else.
+    step = np.abs(np.diff(tiled, axis=1)).mean(axis=0)
+    assert step.max() < 3.0 * np.median(step) + 0.05
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (5, 3), (17, 40)])
+def test_maps_smaller_than_a_stride_work(tmp_path, shape):
+    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024)
+    cells = np.full(shape, FREE, dtype=np.int8)
+    values = upsampler.values(cells, GridSpec((0.0, 0.0), 0.1, shape))
+    assert values.shape == shape and np.isfinite(values).all()
+
+
+def test_an_all_unknown_map_stays_unknown(tmp_path):
+    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024)
+    cells = np.full((40, 30), UNKNOWN, dtype=np.int8)
+    values = upsampler.values(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
+    assert (values == 0.5).all()
+    assert (ClassicalUpsampler(2, 3).values(cells, None) == 0.5).all()
+
+
+def test_classical_closes_wall_gaps_and_fills_between_rays():
+    cells = np.full((20, 40), UNKNOWN, dtype=np.int8)
+    cells[10, ::2] = OCCUPIED  # a wall seen every other cell
+    cells[2:9:2, 5:35] = FREE  # free rays with unknown gaps between them
+    values = ClassicalUpsampler(1, 2).values(cells, None)
+    assert (values[10, 1:39] == 1.0).all()
+    assert (values[3:8, 8:32] == 0.0).all()
+    assert (values[15:, :] == 0.5).all()  # nothing observed there: still unknown
+
+
+def test_get_upsampler_names_the_choices(tmp_path):
+    with pytest.raises(UpsamplerError, match="choose gan, classical"):
+        get_upsampler(UpsampleConfig(), "bicubic")
+    config = UpsampleConfig(weights=str(tmp_path / "nothing.pt"))
+    with pytest.raises(UpsamplerError, match="no such weights file"):
+        get_upsampler(config)
