@@ -187,3 +187,48 @@ def test_get_upsampler_names_the_choices(tmp_path):
     config = UpsampleConfig(weights=str(tmp_path / "nothing.pt"))
     with pytest.raises(UpsamplerError, match="no such weights file"):
         get_upsampler(config)
+
+
+def test_the_refresher_up_samples_in_the_background_at_its_period():
+    import time
+
+    from smokyslam.upsample.online import DenseRefresher
+
+    sparse, _ = _sparse_room()
+    spec = GridSpec((0.0, 0.0), 0.1, sparse.shape)
+    config = UpsampleConfig(method="classical", refresh_period_s=5.0)
+    refresher = DenseRefresher(config)
+    try:
+        assert refresher.due(0.0)
+        refresher.refresh(0.0, sparse, spec)
+        deadline = time.monotonic() + 120
+        while refresher.latest is None and time.monotonic() < deadline:
+            assert not refresher.due(1.0) or refresher.latest is not None
+            time.sleep(0.05)
+        assert refresher.refreshes == 1 and refresher.latest_stamp_s == 0.0
+        expected = get_upsampler(config).values(sparse, spec)
+        np.testing.assert_array_equal(refresher.latest.values, expected)
+        assert not refresher.due(4.9) and refresher.due(5.0)
+        np.testing.assert_array_equal(refresher.final(sparse, spec).values, expected)
+        assert refresher.stats()["refreshes"] == 1
+    finally:
+        refresher.close()
+
+
+def test_unusable_weights_stop_the_run_at_the_next_keyframe(tmp_path):
+    import time
+
+    from smokyslam.upsample.online import DenseRefresher
+
+    (tmp_path / "junk.pt").write_bytes(b"junk")
+    refresher = DenseRefresher(UpsampleConfig(weights=str(tmp_path / "junk.pt")))
+    sparse, _ = _sparse_room()
+    try:
+        refresher.refresh(0.0, sparse, GridSpec((0.0, 0.0), 0.1, sparse.shape))
+        deadline = time.monotonic() + 120
+        with pytest.raises(UpsamplerError, match=r"junk\.pt"):
+            while time.monotonic() < deadline:
+                refresher.due(10.0)
+                time.sleep(0.05)
+    finally:
+        refresher.close()

@@ -11,21 +11,16 @@ at import time needs the ``if __name__ == "__main__":`` guard.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import multiprocessing
 import os
-import signal
-import threading
 import time
-from collections.abc import Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any
 
 from smokyslam.config import CameraOdometryConfig
 from smokyslam.frontends.camera.odometry import CameraOdometry
 from smokyslam.frontends.camera.result import CameraOdometryResult
-from smokyslam.pipelines.worker_process import start_worker_process
+from smokyslam.pipelines.worker_process import start_worker_pool, start_worker_process
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.types import CameraFrame, CameraIntrinsics
 
@@ -61,25 +56,6 @@ def _start_worker(parent_pid: int, *camera: Any) -> None:
     _WORKER["camera"] = SmokyCamera(*camera)
 
 
-def _ready() -> bool:
-    return True
-
-
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while a worker is started: a child inherits an ignored signal, so a
-    Ctrl-C in the terminal reaches the main process only (and no worker prints a traceback
-    of it). Only the main thread can change signal handlers; elsewhere nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def _track_in_worker(frame: CameraFrame) -> Tracked:
     return _WORKER["camera"].track(frame)
 
@@ -104,14 +80,7 @@ class CameraStage:
         self._inline: SmokyCamera | None = None
         self._executor: ProcessPoolExecutor | None = None
         if worker:
-            with _sigint_ignored():
-                self._executor = ProcessPoolExecutor(
-                    1,
-                    mp_context=multiprocessing.get_context("spawn"),
-                    initializer=_start_worker,
-                    initargs=(os.getpid(), *camera),
-                )
-                self._executor.submit(_ready)  # starts the worker now, SIGINT ignored
+            self._executor = start_worker_pool(_start_worker, (os.getpid(), *camera))
         else:
             self._inline = SmokyCamera(*camera)
 

@@ -14,10 +14,17 @@ import logging
 import multiprocessing
 import os
 import signal
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import (
+    FIRST_COMPLETED,
+    Future,
+    InvalidStateError,
+    ProcessPoolExecutor,
+    wait,
+)
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +44,8 @@ STOP_WAIT_S = 1.5
 """After Ctrl-C, how long running jobs get to write what they computed."""
 
 ProgressCallback = Callable[..., None]
+
+_DEFAULT_EXCEPTHOOK = threading.excepthook
 
 
 @dataclass(frozen=True)
@@ -159,8 +168,17 @@ def _run_in_pool(jobs: Sequence[CompareJob], workers: int, finished: Callable) -
     return False
 
 
+def _ignore_cancelled_future_errors(args: threading.ExceptHookArgs) -> None:
+    """Python 3.11's process pool, broken by ending its workers, sets an exception on futures
+    already cancelled, and its manager thread prints the InvalidStateError. Nothing is lost
+    (those runs were cancelled): it is not printed. Anything else is, as usual."""
+    if args.exc_type is not InvalidStateError:
+        _DEFAULT_EXCEPTHOOK(args)
+
+
 def _stop(pool, pending, futures, jobs, finished) -> None:
     """Cancel what has not started, interrupt what runs, give it STOP_WAIT_S, end the rest."""
+    threading.excepthook = _ignore_cancelled_future_errors  # the rest of this process
     for future in pending:
         future.cancel()
     processes = list(getattr(pool, "_processes", {}).values())  # no public handle on them

@@ -8,9 +8,10 @@ the ground-truth frame; finish the recording.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -70,6 +71,15 @@ def evaluate_source(
     )
 
 
+@contextlib.contextmanager
+def _dense_closed(estimate: RunEstimate) -> Iterator[None]:
+    try:
+        yield
+    finally:
+        if estimate.maps.dense is not None:
+            estimate.maps.dense.close()
+
+
 def run_log(
     log_path: Path | str,
     source: str,
@@ -93,14 +103,14 @@ def run_log(
         reader = open_log(log_path, config, require=spec.requires)
         recorder = open_recorder(rerun_path)
         estimate = run_source(reader, source, config, on_progress, recorder)
-        truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
-        evaluation = evaluate_source(estimate, truth, source)
-        write_trajectory(out, source, estimate, evaluation, truth, gt_map)
-        observed = reader.observed_ground_truth_map()
-        write_maps(out, estimate, evaluation, gt_map, observed, spec.camera_only)
-        if (dense := estimate.maps.dense) is not None:
-            out.update_metrics({"upsample": dense.stats()})
-            dense.close()
+        with _dense_closed(estimate):  # the up-sampling worker stops, whatever happens
+            truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
+            evaluation = evaluate_source(estimate, truth, source)
+            write_trajectory(out, source, estimate, evaluation, truth, gt_map)
+            observed = reader.observed_ground_truth_map()
+            write_maps(out, estimate, evaluation, gt_map, observed, spec.camera_only)
+            if (dense := estimate.maps.dense) is not None:
+                out.update_metrics({"upsample": dense.stats()})
         record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
         if problems := reader.problems():
             out.update_metrics({"log": problems})
