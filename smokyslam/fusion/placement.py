@@ -10,12 +10,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from smokyslam.config.fusion import RegistrationConfig
 from smokyslam.errors import FusionError
-from smokyslam.fusion.registration import Registration, register_maps, warp_cells
+from smokyslam.fusion.registration import (
+    Registration,
+    register_maps,
+    warp_cells,
+    warp_values,
+)
 
 
 @dataclass
@@ -26,23 +30,6 @@ class PlacedVisualMap:
     cells: np.ndarray
     trust: np.ndarray | None
     registration: Registration
-
-
-def warp_values(
-    values: np.ndarray, H: np.ndarray, destination_shape: tuple[int, int], fill: float
-) -> np.ndarray:
-    """(rows, cols) float ``values`` over a source grid (``[iy, ix]``) warped by ``H``
-    (stored-image pixels, as :func:`registration.warp_cells`), bilinear, ``fill`` outside."""
-    rows, cols = destination_shape
-    warped = cv2.warpPerspective(
-        np.flipud(np.asarray(values, dtype=np.float32)),
-        np.asarray(H, dtype=float),
-        (cols, rows),
-        flags=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=float(fill),
-    )
-    return np.ascontiguousarray(np.flipud(warped)).astype(float)
 
 
 def place_visual_map(

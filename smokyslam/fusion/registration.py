@@ -180,16 +180,36 @@ def warp_cells(
 ) -> np.ndarray:
     """(rows, cols) int8 of ``destination_shape``: the source map (``[iy, ix]`` cells) warped
     by ``H`` (stored-image pixels) onto the destination grid; nearest cell, outside unknown."""
+    warped = _warp_grid(
+        np.asarray(source_cells).astype(np.int16), H, destination_shape, cv2.INTER_NEAREST, UNKNOWN
+    )
+    return warped.astype(np.int8)
+
+
+def warp_values(
+    values: np.ndarray, H: np.ndarray, destination_shape: tuple[int, int], fill: float
+) -> np.ndarray:
+    """(rows, cols) float ``values`` over a source grid (``[iy, ix]``) warped by ``H``
+    (stored-image pixels, as :func:`warp_cells`), bilinear, ``fill`` outside."""
+    values = np.asarray(values, dtype=np.float32)
+    return _warp_grid(values, H, destination_shape, cv2.INTER_LINEAR, fill).astype(float)
+
+
+def _warp_grid(
+    grid: np.ndarray, H: np.ndarray, destination_shape: tuple[int, int], flags: int, fill: float
+) -> np.ndarray:
+    """A ``[iy, ix]`` grid warped by the stored-image homography ``H``: flipped to the stored
+    image, warped, flipped back."""
     rows, cols = destination_shape
     warped = cv2.warpPerspective(
-        np.flipud(source_cells).astype(np.int16),
+        np.flipud(grid),
         np.asarray(H, dtype=float),
         (cols, rows),
-        flags=cv2.INTER_NEAREST,
+        flags=flags,
         borderMode=cv2.BORDER_CONSTANT,
-        borderValue=UNKNOWN,
+        borderValue=float(fill),
     )
-    return np.ascontiguousarray(np.flipud(warped)).astype(np.int8)
+    return np.ascontiguousarray(np.flipud(warped))
 
 
 def map_residual(
