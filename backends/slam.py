@@ -123,6 +123,8 @@ class SlamBackend:
         """Per keyframe: a camera factor ends there."""
         self.camera_weight: list[float] = []
         """Per primary frame: gate weight of the latest camera frame."""
+        self.loop_edges: list[tuple[int, int]] = []
+        """(old, new) keyframe indices of every loop closure, in the order they were made."""
         self.status = SlamStatus()
 
     # ------------------------------------------------------------------ numbers
@@ -274,6 +276,7 @@ class SlamBackend:
             source="loop_closure",
         )
         self._graph.optimize()
+        self.loop_edges.append((closure.old_index, closure.new_index))
         self.status.loop_closures += 1
 
     def _update_status(self, odometry: Odometry) -> None:

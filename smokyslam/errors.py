@@ -72,3 +72,7 @@ class TrainingInterruptedError(UpsamplerError):
 
 class FusionError(SmokySlamError):
     """Maps cannot be registered or fused: one has no known cell, or they cannot overlap."""
+
+
+class ViewerError(SmokySlamError):
+    """A recording cannot be shown: no display, or no recording where one was named."""

@@ -38,6 +38,9 @@ RUN_OUTPUTS = (
     "trajectory_kitti.txt",
     "ground_truth.tum",
     "trajectory.png",
+    "error.png",
+    "health.png",
+    "run.rrd",
     "error.log",
     "maps",
 )
@@ -150,8 +153,11 @@ class OutputFolder:
         spec: GridSpec,
         truth: GroundTruthMap | None = None,
         trajectory_xy_m: np.ndarray | None = None,
+        caption: str = "",
     ) -> Path | None:
-        """``maps/NAME.{pgm,yaml,png}`` and, with ground truth, ``maps/NAME_vs_truth.png``.
+        """``maps/NAME.{pgm,yaml,png}`` and, with ground truth or a path, the picture
+        ``maps/NAME_vs_truth.png``: metric axes, a legend, the path, and a title naming the
+        map and ``caption`` (e.g. the source and the error index).
 
         A map without a single cell (e.g. every radar return lost) is a valid result with no
         file: it is named in ``metrics.json`` ``empty_maps`` and in ``run.log``; None.
@@ -165,7 +171,12 @@ class OutputFolder:
         self.maps[name] = (cells, spec)
         if truth is not None or trajectory_xy_m is not None:
             render_map_png(
-                self.path("maps", f"{name}_vs_truth.png"), cells, spec, truth, trajectory_xy_m
+                self.path("maps", f"{name}_vs_truth.png"),
+                cells,
+                spec,
+                truth,
+                trajectory_xy_m,
+                f"{name}: {caption}" if caption else name,
             )
         return yaml_path
 

@@ -1,10 +1,12 @@
-"""Progress bars for long commands (rich), kept out of the library cores.
+"""Progress for long commands, kept out of the library cores: a rich bar at a terminal, a
+plain line every few seconds when output is piped or logged.
 
 Cores accept an optional ``on_progress(done, total)`` callback; the CLI passes one of these.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -21,10 +23,19 @@ from rich.progress import (
 
 console = Console(stderr=True)
 
+PLAIN_PERIOD_S = 5.0
+"""Seconds between plain progress lines (output not on a terminal)."""
+
 
 @contextmanager
 def progress_bar(description: str, total: float, unit: str = "s") -> Iterator[Callable[..., None]]:
-    """A rich bar on stderr; yields ``update(done, total=None, status="")``."""
+    """Progress on stderr; yields ``update(done, total=None, status="")``. At a terminal a
+    rich bar; otherwise (CI, scripts, logs) a plain text line every :data:`PLAIN_PERIOD_S`
+    seconds, and one at the end of a command that printed any."""
+    if not console.is_terminal:
+        with _plain_progress(description, total, unit) as update:
+            yield update
+        return
     columns = [
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -34,8 +45,7 @@ def progress_bar(description: str, total: float, unit: str = "s") -> Iterator[Ca
         TimeRemainingColumn(),
         TextColumn("{task.fields[status]}"),
     ]
-    # Bars are for people at a terminal; piped output (CI, scripts) stays clean.
-    with Progress(*columns, console=console, disable=not console.is_terminal) as progress:
+    with Progress(*columns, console=console) as progress:
         task = progress.add_task(description, total=total, status="")
 
         def update(done: float, total: float | None = None, status: str = "") -> None:
@@ -43,3 +53,41 @@ def progress_bar(description: str, total: float, unit: str = "s") -> Iterator[Ca
 
         yield update
         progress.update(task, completed=progress.tasks[0].total)
+
+
+def progress_line(
+    description: str, done: float, total: float, unit: str, elapsed_s: float, status: str = ""
+) -> str:
+    """``description: 3/12 items (25%), 18 s elapsed, status`` (seconds: ``12/60 s``)."""
+    amount = f"{done:.0f}/{total:.0f} {unit}" if total else f"{done:.0f} {unit}"
+    percent = f" ({100.0 * done / total:.0f}%)" if total else ""
+    line = f"{description}: {amount}{percent}, {elapsed_s:.0f} s elapsed"
+    return f"{line}, {status}" if status else line
+
+
+@contextmanager
+def _plain_progress(description: str, total: float, unit: str) -> Iterator[Callable[..., None]]:
+    """Quiet for the first period (a quick command, or one that fails at once, prints only
+    its own lines), then a line every period, and a last one when it finishes."""
+    started = time.monotonic()
+    state = {"total": float(total), "done": 0.0, "printed": started, "status": "", "lines": 0}
+
+    def say() -> None:
+        elapsed = time.monotonic() - started
+        text = progress_line(
+            description, state["done"], state["total"], unit, elapsed, state["status"]
+        )
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
+        state["printed"], state["lines"] = time.monotonic(), state["lines"] + 1
+
+    def update(done: float, total: float | None = None, status: str = "") -> None:
+        state["done"], state["status"] = float(done), str(status)
+        if total is not None:
+            state["total"] = float(total)
+        if time.monotonic() - state["printed"] >= PLAIN_PERIOD_S:
+            say()
+
+    yield update
+    if state["lines"]:
+        state["done"] = state["total"]
+        say()

@@ -140,7 +140,8 @@ def write_carmen_log(path, poses, n_beams=180, malformed=True, opener=open):
         ranges = box_ranges(pose, bearings)
         ranges[::17] = NO_RETURN  # a few beams see nothing in every scan
         lines.append("ODOM 0 0 0 0 0 0 0 host 0")
-        # Timestamps go backwards now and then: the reader must not care.
+        # Irregular timestamps (0, 2, 4, 15, 17, ...): the run keeps its nominal rate; only
+        # the trajectory files carry them.
         lines.append(_flaser(ranges, pose, stamp=5.0 * i - 3.0 * (i % 3)))
     if malformed:
         good = lines[4]

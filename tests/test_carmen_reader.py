@@ -5,7 +5,7 @@ import gzip
 
 import numpy as np
 import pytest
-from radar_scenes import NO_RETURN, box_ranges, carmen_poses, write_carmen_log
+from radar_scenes import NO_RETURN, _flaser, box_ranges, carmen_poses, write_carmen_log
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import LogError
@@ -175,3 +175,26 @@ def test_unreadable_logs_raise_log_errors(tmp_path):
     broken.write_bytes(b"not gzip at all")
     with pytest.raises(LogError, match="cannot read"):
         CarmenReader(broken, SmokySlamConfig())
+
+
+def test_trajectory_stamps_use_the_logs_own_times_when_they_increase(tmp_path, caplog):
+    bearings = beam_bearings(180)
+    poses = carmen_poses(6)
+    lines = [_flaser(box_ranges(p, bearings), p, 1000.0 + 2.5 * i) for i, p in enumerate(poses)]
+    increasing = tmp_path / "increasing.log"
+    increasing.write_text("\n".join(lines) + "\n")
+    reader = CarmenReader(increasing, SmokySlamConfig())
+    stamps = reader.ground_truth_trajectory().stamps_s
+    np.testing.assert_allclose(reader.log_time_s(stamps), 1000.0 + 2.5 * np.arange(6))
+    # Between lines, the log's clock is interpolated.
+    assert reader.log_time_s(np.array([0.5 * reader.dt_s]))[0] == pytest.approx(1001.25)
+    assert "do not increase" not in caplog.text
+
+    times = [1000.0, 1002.0, 1001.0, 1003.0, 1004.0, 1005.0]  # one step back
+    lines = [_flaser(box_ranges(p, bearings), p, t) for p, t in zip(poses, times, strict=True)]
+    backwards = tmp_path / "backwards.log"
+    backwards.write_text("\n".join(lines) + "\n")
+    reader = CarmenReader(backwards, SmokySlamConfig())
+    stamps = reader.ground_truth_trajectory().stamps_s
+    np.testing.assert_array_equal(reader.log_time_s(stamps), stamps)  # by index
+    assert "timestamps do not increase" in caplog.text and "by scan index" in caplog.text

@@ -38,6 +38,11 @@ def test_version_and_help_on_every_command():
         "bench",
         "demo",
         "dump-config",
+        "view",
+        "paper-table",
+        "upsample",
+        "register",
+        "fuse",
     ]
     for command in commands:
         assert smokyslam(command, "--help").returncode == 0, command

@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from test_rerun_recorder import rows_per_entity
 
 from smokyslam.config import load_config
 from smokyslam.errors import ConfigError, EstimationError, LogError, OutputError
@@ -121,7 +122,9 @@ def _coloured_pixels(png: Path, rgb: tuple[int, int, int]) -> int:
     return int(np.count_nonzero(np.abs(image - np.array(rgb)).max(axis=2) <= 30))
 
 
-def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path):
+def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
     out = tmp_path / "cmp"
     # A file where one run's folder must go: that run fails inside its worker process.
     (out / "runs").mkdir(parents=True)
@@ -136,6 +139,7 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
         out,
         workers=2,
         on_progress=lambda done, total, status="": calls.append((done, total)),
+        rerun_path=out / "compare.rrd",
     )
     assert sorted(p.name for p in (out / "runs").iterdir()) == [
         "dead-reckoning-r0-c0",
@@ -185,6 +189,16 @@ def test_compare_writes_every_file_and_reports_a_failed_run(office_log, tmp_path
     assert len(markdown) == 6 and markdown[0] == "| " + " | ".join(HEADER) + " |"
     assert "| failed | --out " in markdown[5]
     assert load_config(result.config_path) == config
+
+    # Every finished run's path in one recording, side by side, with its error over time.
+    recorded = rows_per_entity(out / "compare.rrd")
+    for run in result.rows[:3]:
+        name = run.run_dir.name
+        assert recorded[f"/world/position/{name}"] == 301 + 1  # a point per frame, its style
+        assert recorded[f"/error/{name}"] == 301 + 1
+        assert f"/world/trajectory/{name}" in recorded
+    assert not any("dead-reckoning-r0.1" in entity for entity in recorded)
+    assert {"/world/ground_truth/map", "/world/ground_truth/path"} <= set(recorded)
 
     for png in (result.trajectories_png, result.ate_png):
         assert min(cv2.imread(str(png)).shape[:2]) >= 300

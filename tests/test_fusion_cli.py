@@ -32,9 +32,22 @@ def table(tmp_path_factory) -> Path:
         "simulate", "--world", "office", "--seed", "3", "--duration", "40", "--out", log
     )
     assert out.returncode == 0, out.stderr
-    out = smokyslam("paper-table", log, "--out", folder / "table")
+    out = smokyslam("paper-table", log, "--out", folder / "table", "--rerun", folder / "t.rrd")
     assert out.returncode == 0, out.stderr
     return folder / "table"
+
+
+def test_paper_table_records_its_runs_and_maps(table):
+    from test_rerun_recorder import rows_per_entity
+
+    recorded = rows_per_entity(table.parent / "t.rrd")
+    for source in ("fused", "camera"):
+        for level in ("r0-c0", "r0.1-c0.2", "r0.2-c0.4"):
+            assert f"/world/trajectory/{source}-{level}" in recorded
+    written = sorted(p.stem for p in (table / "maps").glob("map_*.yaml"))
+    pictures = sorted(e.split("/")[-1] for e in recorded if e.startswith("/maps/"))
+    assert pictures == sorted(f"map_{int(name[4:]):02d}" for name in written)
+    assert len(pictures) >= 6
 
 
 def test_paper_table_writes_all_twelve_rows_and_maps(table):

@@ -10,7 +10,7 @@ import yaml
 from smokyslam.errors import MapFileError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import load_map, save_map
-from smokyslam.mapping.render import render_map_png
+from smokyslam.mapping.render import map_picture, render_map_png
 from smokyslam.sim.world import box_world
 from smokyslam.types import GroundTruthMap
 
@@ -91,18 +91,21 @@ def test_picture_overlays_truth_walls_in_red(tmp_path):
     cells = np.full(world.spec.shape, -1, dtype=np.int8)
     cells[1:-1, 1:-1] = 0
     cells[10, 10] = 100  # a false obstacle at (0.95, 0.95)
-    path = render_map_png(
-        tmp_path / "map.png", cells, world.spec, truth, np.array([[1.0, 1.0], [7.0, 5.0]])
-    )
-    image = cv2.imread(str(path))
-    scale = image.shape[0] // world.spec.shape[0]
-    assert scale >= 9 and image.shape[1] == world.spec.shape[1] * scale
+    image, canvas = map_picture(cells, world.spec, truth)
+    assert canvas == world.spec and image.shape == (*world.spec.shape, 3)
 
     def pixel(x_m, y_m):
-        col = int((x_m - world.spec.origin_xy_m[0]) / world.spec.resolution_m * scale)
-        row = image.shape[0] - 1 - int((y_m - world.spec.origin_xy_m[1]) / 0.1 * scale)
-        return image[row, col].tolist()
+        ix, iy = canvas.cells_of(np.array([[x_m, y_m]]))[0]
+        return image[iy, ix].tolist()
 
-    assert pixel(-0.05, 3.0) == [102, 102, 230]  # a wall the map leaves unknown: grey + red
+    assert pixel(-0.05, 3.0) == [217, 102, 102]  # a wall the map leaves unknown: grey + red
     assert pixel(0.95, 0.95) == [0, 0, 0]  # the map's own obstacle, no wall there
-    assert pixel(3.0, 4.5) == [254, 254, 254]  # free, away from the trajectory
+    assert pixel(3.0, 4.5) == [254, 254, 254]  # free
+    # The picture itself: a fixed width, axes, title and legend (matplotlib draws them).
+    path = render_map_png(
+        tmp_path / "map.png", cells, world.spec, truth, np.array([[1.0, 1.0], [7.0, 5.0]]), "t"
+    )
+    png = cv2.imread(str(path))
+    assert png.shape[1] == 770 and 300 <= png.shape[0] <= 1100
+    blue = np.abs(png.astype(int) - [200, 80, 0]).max(axis=2) <= 40  # the path, BGR
+    assert blue.sum() > 100

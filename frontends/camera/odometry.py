@@ -37,6 +37,7 @@ from smokyslam.frontends.camera.result import (
     LOST_VARIANCE,
     CameraHealth,
     CameraOdometryResult,
+    CameraView,
     TrackingStatus,
 )
 from smokyslam.frontends.camera.tracker import LKTracker
@@ -77,6 +78,7 @@ class CameraOdometry:
         self._reference_stamp_s = 0.0
         self._lost_since_s = 0.0
         self._reinitializations = 0
+        self._clean: np.ndarray | None = None  # the latest frame after preprocessing
 
     # ------------------------------------------------------------------ public
 
@@ -89,6 +91,7 @@ class CameraOdometry:
         if image.ndim == 3:
             image = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
         image, quality = self._preprocessor.apply(image)
+        self._clean = image
         dt = 0.0 if self._stamp_s is None else max(frame.stamp_s - self._stamp_s, 0.0)
         if (
             self._status is TrackingStatus.LOST
@@ -160,6 +163,13 @@ class CameraOdometry:
         if self.camera_height_m is None or reference is None:
             return None
         return self.camera_height_m / reference
+
+    def view(self, raw: np.ndarray) -> CameraView:
+        """The latest frame as tracked: ``raw`` (the image given to :meth:`track`), its
+        cleaned image and the points being tracked in it."""
+        tracks = self._map.tracks
+        clean = self._clean if self._clean is not None else raw
+        return CameraView(raw, clean, tracks.uv_px.copy(), tracks.has_landmark.copy())
 
     def landmarks_world(self) -> np.ndarray:
         """(N, 3) every landmark triangulated so far, in the odometry world (x forward, y left,

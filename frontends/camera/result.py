@@ -40,6 +40,18 @@ class CameraHealth:
     residual_rms_px: float = float("nan")
 
 
+@dataclass(frozen=True)
+class CameraView:
+    """What one tracked frame looked like, for a recording: ``raw`` (H, W) uint8 the image as
+    tracked (smoke included), ``clean`` (H, W) uint8 after preprocessing, ``features_px``
+    (N, 2) the tracked points (u, v) and ``has_landmark`` (N,) bool those with a landmark."""
+
+    raw: np.ndarray
+    clean: np.ndarray
+    features_px: np.ndarray
+    has_landmark: np.ndarray
+
+
 @dataclass
 class CameraOdometryResult:
     """The odometry's output for one frame (lengths in odometry units: up to scale).
@@ -59,6 +71,7 @@ class CameraOdometryResult:
     metres_per_unit: metres per odometry unit from the camera's known height above the
         floor (the first map's floor depth below the camera), None until the floor is found
         or when the height is not known.
+    view: the frame's images and features, when the camera stage keeps them for a recording.
     """
 
     stamp_s: float
@@ -75,6 +88,7 @@ class CameraOdometryResult:
     reinitializations: int
     landmarks_world: np.ndarray
     metres_per_unit: float | None = None
+    view: CameraView | None = None
 
     @property
     def lost(self) -> bool:

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
+import numpy as np
+
 from smokyslam.types import (
     CameraIntrinsics,
     Extrinsics,
@@ -61,6 +63,12 @@ class LogReader(Protocol):
         """Every radar, camera and IMU frame, in time order, each decoded once. Never ground
         truth: estimators read this and nothing else. ``streams``: only these of
         :data:`SENSOR_STREAMS` (None: all), so a run decodes nothing it does not use."""
+        ...
+
+    def log_time_s(self, stamps_s: np.ndarray) -> np.ndarray:
+        """(N,) stamps from the log start (``stamp_s``, as frames carry them) on the log's own
+        clock, seconds since the epoch: what trajectory files and recordings are stamped
+        with, so that they match the log's messages."""
         ...
 
     def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:

@@ -4,9 +4,11 @@
 n beams over 180° (180 at 1°, 360/361 at 0.5°, derived from n), the first looking right.
 The ``x y theta`` pose on each line is the (SLAM-corrected) ground truth of ``base_link``.
 
-Timestamps in these logs are often printed at low precision or go backwards, so they are not
-used: scan i is stamped ``i / carmen.nominal_rate_hz`` seconds, and all motion (emulated
-Doppler and gyro) comes from pose differences. The logs are keyframe-subsampled: 0.1-0.9 m and
+Timestamps in these logs are often printed at low precision or go backwards, so they do not
+drive the run: scan i is stamped ``i / carmen.nominal_rate_hz`` seconds, and all motion
+(emulated Doppler and gyro) comes from pose differences. Trajectory files carry the log's own
+timestamps where they increase through the whole log (``log_time_s``); where they do not, the
+reader says so and files keep the nominal stamps. The logs are keyframe-subsampled: 0.1-0.9 m and
 up to 78° between scans, far coarser than a 10 Hz radar.
 
 Per scan, in this order and at one stamp: an :class:`ImuSample` whose gyro z is the emulated
@@ -59,18 +61,21 @@ logger = logging.getLogger(__name__)
 class LaserLog:
     """The ``FLASER`` records of one log, all with the same beam count n.
 
-    ranges_m: (S, n) metres. poses_world_base: (S, 3) [x, y, theta]. laser_offset_m: forward
-    offset of the laser on the robot. skipped_lines: malformed ``FLASER`` lines.
+    ranges_m: (S, n) metres. poses_world_base: (S, 3) [x, y, theta]. timestamps_s: (S,) the
+    lines' own timestamps (NaN where unreadable). laser_offset_m: forward offset of the laser
+    on the robot. skipped_lines: malformed ``FLASER`` lines.
     """
 
     ranges_m: np.ndarray
     poses_world_base: np.ndarray
+    timestamps_s: np.ndarray
     laser_offset_m: float
     skipped_lines: int
 
 
-def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
-    """Ranges (n,) and pose (3,) of one split ``FLASER`` line, or None when malformed."""
+def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Ranges (n,), pose (3,) and timestamp (NaN if unreadable) of one split ``FLASER`` line,
+    or None when malformed."""
     try:
         n = int(tokens[1])
         if n <= 0 or len(tokens) < 2 + n + 7:
@@ -80,7 +85,7 @@ def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     if not np.all(np.isfinite(values)):
         return None
-    return values[:n], values[n:]
+    return values[:n], values[n:], _float_or(tokens[2 + n + 6], float("nan"))
 
 
 MAX_RANGE_M = 1000.0
@@ -97,7 +102,7 @@ def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
     pose). All are counted and warned.
     """
     opener = gzip.open if path.suffix == ".gz" else open
-    ranges, poses, skipped, offset = [], [], 0, 0.0
+    ranges, poses, times, skipped, offset = [], [], [], 0, 0.0
     try:
         with opener(path, "rt", errors="replace") as stream:
             for number, line in enumerate(stream, start=1):
@@ -115,6 +120,7 @@ def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
                     continue
                 ranges.append(record[0])
                 poses.append(record[1])
+                times.append(record[2])
     except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:
         raise LogError(f"{path}: cannot read CARMEN log ({exc})") from None
     if not ranges:
@@ -125,6 +131,7 @@ def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
     skipped += len(ranges) - len(same)
     ranges_m = np.array([ranges[i] for i in same])
     poses_m = np.array([poses[i] for i in same])
+    times_s = np.array([times[i] for i in same])
     absurd = (ranges_m < 0.0) | (ranges_m > MAX_RANGE_M)
     ranges_m[absurd] = np.inf
     keep = _without_pose_spikes(poses_m, max_jump_m) & ~absurd.all(axis=1)
@@ -141,7 +148,9 @@ def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
             (~keep).sum(),
             max_jump_m,
         )
-    return LaserLog(ranges_m[keep], poses_m[keep], offset, skipped + int((~keep).sum()))
+    return LaserLog(
+        ranges_m[keep], poses_m[keep], times_s[keep], offset, skipped + int((~keep).sum())
+    )
 
 
 def _without_pose_spikes(poses: np.ndarray, max_jump_m: float) -> np.ndarray:
@@ -178,6 +187,7 @@ class CarmenReader:
         n_beams = self._log.ranges_m.shape[1]
         self.beams = BeamGeometry(beam_bearings(n_beams), detect_no_return(self._log.ranges_m))
         self.dt_s = 1.0 / config.carmen.nominal_rate_hz
+        self._said_nominal = False
         logger.info(
             "%s: %d scans of %d beams, no-return %.2f m",
             self.path,
@@ -200,6 +210,26 @@ class CarmenReader:
     def stamps_s(self) -> np.ndarray:
         """(S,) nominal scan stamps, seconds."""
         return np.arange(len(self._log.ranges_m)) * self.dt_s
+
+    def log_time_s(self, stamps_s: np.ndarray) -> np.ndarray:
+        """The lines' own timestamps (interpolated between lines) when they increase through
+        the whole log; otherwise the nominal stamps, and the reader says so once."""
+        stamps_s = np.asarray(stamps_s, dtype=float)
+        own = self._log.timestamps_s
+        steps = np.diff(own)
+        if len(own) and np.all(np.isfinite(own)) and np.all(steps > 0):
+            return np.interp(stamps_s / self.dt_s, np.arange(len(own)), own)
+        if not self._said_nominal:
+            self._said_nominal = True
+            logger.warning(
+                "%s: the log's timestamps do not increase (%d of %d steps); trajectory "
+                "files are stamped by scan index at %g Hz",
+                self.path,
+                int(np.sum(~(steps > 0))),
+                len(steps),
+                1.0 / self.dt_s,
+            )
+        return stamps_s
 
     def summary(self) -> LogSummary:
         count = len(self._log.ranges_m)

@@ -75,6 +75,7 @@ class RosbagReader:
         """The checks of the latest ``frames()`` pass (what was dropped, time anomalies)."""
         self._intrinsics: CameraIntrinsics | None = None
         self._intrinsics_read = False
+        self._time_origin_s: float | None = None
         self._log_types = self._file.types
         self.stream_topics = self._resolve_streams()
 
@@ -113,21 +114,27 @@ class RosbagReader:
     def _messages(self, *streams: str) -> Iterator[tuple[str, float, Any]]:
         """(stream, stamp_s from the log start, decoded message) of the named streams."""
         by_topic = {self.stream_topics[s]: s for s in streams if s in self.stream_topics}
-        clocked = (*SENSOR_STREAMS, "ground_truth_pose")
         once = {"tf_static", "ground_truth_map", "ground_truth_map_observed"}
-        clock_topics = (
-            []
-            if set(streams) <= once
-            else [self.stream_topics[s] for s in clocked if s in self.stream_topics]
-        )
+        clock_topics = [] if set(streams) <= once else self._clock_topics()
         for topic, stamp_s, msg in self._file.messages(by_topic, clock_topics):
             yield by_topic[topic], stamp_s, msg
+
+    def _clock_topics(self) -> list[str]:
+        """The topics whose header stamps decide the log's clock."""
+        clocked = (*SENSOR_STREAMS, "ground_truth_pose")
+        return [self.stream_topics[s] for s in clocked if s in self.stream_topics]
 
     # ------------------------------------------------------------ LogReader protocol
 
     def summary(self) -> LogSummary:
         """Every topic with its type, count and rate; of a damaged log, what can be read."""
         return self._file.summary()
+
+    def log_time_s(self, stamps_s: np.ndarray) -> np.ndarray:
+        """Stamps from the log start on the log's own clock (seconds since the epoch)."""
+        if self._time_origin_s is None:
+            self._time_origin_s = self._file.time_origin_s(self._clock_topics())
+        return np.asarray(stamps_s, dtype=float) + self._time_origin_s
 
     @property
     def damage(self) -> str | None:

@@ -123,6 +123,16 @@ class RosbagFile:
             self.damage = f"damaged after {stamp_s:.2f} s of log ({read} messages read): {exc}"
             logger.warning("%s: %s", self.path, self.damage)
 
+    def time_origin_s(self, clock_topics: Collection[str]) -> float:
+        """Seconds since the epoch of ``stamp_s`` 0 on the log's own clock: the first message's
+        log time, moved onto the header clock when the log is read in header order (so
+        stamps match the messages' header stamps, as TUM files and evo expect)."""
+        with self.open() as reader:
+            start_ns = reader.start_time if reader.message_count else 0
+        clock = self.clock(clock_topics) if clock_topics else ClockChoice("log")
+        offset_ns = clock.offset_ns if clock.order == "header" else 0
+        return (start_ns + offset_ns) * NS
+
     def clock(self, topics: Collection[str]) -> ClockChoice:
         """How this log is ordered, decided once from the raw header stamps of ``topics``."""
         if self._clock is None:

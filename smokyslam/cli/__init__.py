@@ -41,6 +41,7 @@ COMMANDS = {
     "paper-table": fusion_commands.paper_table,
     "bench": run_commands.bench,
     "demo": run_commands.demo,
+    "view": run_commands.view,
     "dump-config": log_commands.dump_config,
 }
 for _name, _command in COMMANDS.items():

@@ -7,7 +7,13 @@ from typing import Annotated
 
 import typer
 
-from smokyslam.cli.options import ConfigOption, OverwriteOption
+from smokyslam.cli.options import (
+    ConfigOption,
+    OverwriteOption,
+    RerunOption,
+    RerunSpawnOption,
+    check_rerun,
+)
 from smokyslam.config import load_config
 from smokyslam.outputs import writable_folder
 
@@ -106,6 +112,8 @@ def paper_table(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
     ] = None,
+    rerun: RerunOption = None,
+    rerun_spawn: RerunSpawnOption = False,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
@@ -113,12 +121,24 @@ def paper_table(
     levels (table.csv, table.md, maps/map_<i>.*, maps.png, runs/ in --out)."""
     cfg = load_config(config)
     writable_folder(out)
+    check_rerun(rerun, rerun_spawn)
     from smokyslam.pipelines.paper_table import LEVELS
     from smokyslam.pipelines.paper_table import paper_table as run_paper_table
     from smokyslam.progress import progress_bar
 
     total = 2 * len(LEVELS)
     with progress_bar(f"Table I: {total} runs", total, unit="items") as update:
-        result = run_paper_table(log, cfg, out, jobs, on_progress=update, overwrite=overwrite)
+        result = run_paper_table(
+            log,
+            cfg,
+            out,
+            jobs,
+            on_progress=update,
+            overwrite=overwrite,
+            rerun_path=rerun,
+            rerun_spawn=rerun_spawn,
+        )
     typer.echo((result.out_dir / "table.md").read_text(), nl=False)
     typer.echo(f"wrote {result.out_dir}/table.csv ({result.wall_s:.1f} s)")
+    if rerun is not None:
+        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")

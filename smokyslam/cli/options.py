@@ -42,9 +42,33 @@ CalibrationOption = Annotated[
         "replaces the log's /tf_static mounting.",
     ),
 ]
+RerunOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--rerun",
+        help="Write a Rerun recording (.rrd) here, as the run goes; open it with "
+        "`smokyslam view FILE`.",
+    ),
+]
+RerunSpawnOption = Annotated[
+    bool,
+    typer.Option("--rerun-spawn", help="Stream the recording to a Rerun viewer (needs a display)."),
+]
 OverwriteOption = Annotated[
     bool, typer.Option("--overwrite", help="Replace the outputs of an earlier run in --out.")
 ]
+
+
+def check_rerun(rerun: Path | None, spawn: bool) -> None:
+    """``--rerun`` writable and ``--rerun-spawn`` possible, before any work starts."""
+    if rerun is not None:
+        from smokyslam.outputs import writable_file
+
+        writable_file(rerun, "--rerun")
+    if spawn:
+        from smokyslam.viz.viewer import require_display
+
+        require_display("--rerun-spawn")
 
 
 def smoke_overrides(

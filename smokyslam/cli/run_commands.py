@@ -15,12 +15,14 @@ from smokyslam.cli.options import (
     HazeOption,
     OverwriteOption,
     RadarLossOption,
+    RerunOption,
+    RerunSpawnOption,
     SmokeOption,
+    check_rerun,
     effective_config,
     smoke_overrides,
     summary_line,
 )
-from smokyslam.outputs import writable_file
 
 
 def run(
@@ -33,9 +35,8 @@ def run(
     radar_loss: RadarLossOption = None,
     camera_noise: CameraNoiseOption = None,
     haze: HazeOption = None,
-    rerun: Annotated[
-        Path | None, typer.Option("--rerun", help="Also write a Rerun recording (.rrd) here.")
-    ] = None,
+    rerun: RerunOption = None,
+    rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
@@ -44,8 +45,7 @@ def run(
     cfg = effective_config(
         config, smoke_overrides(smoke, radar_loss, camera_noise, haze), calibration
     )
-    if rerun is not None:
-        writable_file(rerun, "--rerun")
+    check_rerun(rerun, rerun_spawn)
     from smokyslam.frontends.readers.registry import open_log
     from smokyslam.pipelines.run import run_log
     from smokyslam.pipelines.sources import get_source
@@ -62,9 +62,12 @@ def run(
             on_progress=lambda t, s: update(t, status=s),
             rerun_path=rerun,
             overwrite=overwrite,
+            rerun_spawn=rerun_spawn,
         )
     typer.echo(summary_line(result.metrics))
     typer.echo(f"wrote {result.out_dir}/")
+    if rerun is not None:
+        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
 
 
 def compare(
@@ -85,12 +88,15 @@ def compare(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
     ] = None,
+    rerun: RerunOption = None,
+    rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
     """Run odometry sources at several smoke levels: run folders, a table and plots."""
     cfg = effective_config(config, calibration=calibration)
+    check_rerun(rerun, rerun_spawn)
     from smokyslam.pipelines.compare import compare as run_compare
     from smokyslam.pipelines.compare import parse_smoke_levels, parse_sources
     from smokyslam.progress import progress_bar
@@ -99,10 +105,21 @@ def compare(
     total = len(source_list) * len(levels)
     with progress_bar(f"comparing {total} runs", total, unit="items") as update:
         result = run_compare(
-            log, source_list, levels, cfg, out, jobs, on_progress=update, overwrite=overwrite
+            log,
+            source_list,
+            levels,
+            cfg,
+            out,
+            jobs,
+            on_progress=update,
+            overwrite=overwrite,
+            rerun_path=rerun,
+            rerun_spawn=rerun_spawn,
         )
     typer.echo(result.markdown_path.read_text(), nl=False)
     typer.echo(f"wrote {result.out_dir}/ ({total} runs in {result.wall_s:.1f} s)")
+    if rerun is not None:
+        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
     if result.failed:
         typer.echo(f"error: {len(result.failed)} of {total} runs failed", err=True)
         raise typer.Exit(1)
@@ -141,6 +158,8 @@ def demo(
     for run_result in result.runs:
         typer.echo(f"{run_result.source + ':':15s} {run_result.out_dir}/")
         typer.echo(f"{'':15s} {summary_line(run_result.metrics)}")
+    typer.echo(f"summary:        {result.summary} (every path: {out}/trajectories.png)")
+    typer.echo(f"recording:      {result.recording} (open it: smokyslam view {result.recording})")
     typer.echo(f"everything is under {out}/")
 
 
@@ -164,3 +183,16 @@ def bench(
     for key, value in results.items():
         typer.echo(f"{key:32s} {value:12.2f}")
     typer.echo(f"wrote {out}")
+
+
+def view(
+    path: Annotated[
+        Path, typer.Argument(help="A .rrd recording, or a folder holding one (e.g. a run).")
+    ],
+) -> None:
+    """Open a Rerun recording in the Rerun viewer (needs a display)."""
+    from smokyslam.viz.viewer import find_recording
+    from smokyslam.viz.viewer import view as open_viewer
+
+    recording = open_viewer(find_recording(path))
+    typer.echo(f"closed {recording}")

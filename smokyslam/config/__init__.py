@@ -27,6 +27,7 @@ from smokyslam.config.estimation import (
     SlamConfig,
 )
 from smokyslam.config.fusion import FusionConfig, RegistrationConfig, TrustConfig
+from smokyslam.config.recording import RecordingConfig
 from smokyslam.config.sensors import (
     CameraModelConfig,
     CarmenConfig,
@@ -62,6 +63,7 @@ __all__ = [
     "MappingConfig",
     "RadarModelConfig",
     "RadarOdometryConfig",
+    "RecordingConfig",
     "RegistrationConfig",
     "RigConfig",
     "ScaleConfig",
@@ -99,6 +101,7 @@ class SmokySlamConfig(Section):
     slam: SlamConfig = SlamConfig()
     upsample: UpsampleConfig = UpsampleConfig()
     fusion: FusionConfig = FusionConfig()
+    recording: RecordingConfig = RecordingConfig()
 
 
 def deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

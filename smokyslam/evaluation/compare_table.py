@@ -112,7 +112,13 @@ def write_tables(rows: Sequence[CompareRow], out_dir: Path) -> tuple[Path, Path]
         writer = csv.writer(stream)
         writer.writerow(COLUMNS)
         writer.writerows([_csv_value(v[c]) for c in COLUMNS] for v in values)
+    markdown_path.write_text(markdown_table(rows))
+    return csv_path, markdown_path
+
+
+def markdown_table(rows: Sequence[CompareRow]) -> str:
+    """The rows as a markdown table (3 decimals), as in ``compare.md``."""
+    values = [row.values() for row in rows]
     lines = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(_markdown_value(v[c]) for c in COLUMNS) + " |" for v in values]
-    markdown_path.write_text("\n".join(lines) + "\n")
-    return csv_path, markdown_path
+    return "\n".join(lines) + "\n"

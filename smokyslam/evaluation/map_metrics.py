@@ -137,3 +137,11 @@ def wall_agreement(
     near = np.zeros(len(points), dtype=bool)
     near[inside] = distance_m[cells[inside, 1], cells[inside, 0]] <= tolerance_m
     return float(near.mean())
+
+
+def score_text(scores: dict[str, Any]) -> str:
+    """``, error index 0.123 (observed 0.101)`` of a map's scores."""
+    text = f", error index {scores['error_index']:.3f}"
+    if "observed" in scores:
+        text += f" (observed truth {scores['observed']['error_index']:.3f})"
+    return text

@@ -1,11 +1,14 @@
-"""PNG pictures of maps: grey map cells, ground-truth walls in red, the trajectory in blue."""
+"""Pictures of maps a reader understands: metric axes, a title, a legend, the path drawn on.
+
+Colours, the same in every picture: map cells black (occupied), white (free) or grey
+(unknown); true walls red (dark red where the map agrees); the path blue.
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from smokyslam.errors import MapFileError
@@ -14,11 +17,12 @@ from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
 from smokyslam.mapping.grid import resample_nearest
 from smokyslam.types import GroundTruthMap
 
-# BGR colours.
-_GREY = {OCCUPIED: (0, 0, 0), FREE: (254, 254, 254), UNKNOWN: (205, 205, 205)}
-_RED = np.array([0, 0, 255], dtype=float)
-_BLUE = (200, 80, 0)
-_MAX_SIDE_PX = 4000
+# RGB colours.
+MAP_COLOURS = {OCCUPIED: (0, 0, 0), FREE: (254, 254, 254), UNKNOWN: (205, 205, 205)}
+WALL_RED = np.array([230, 0, 0], dtype=float)
+PATH_BLUE = "#0050c8"
+FIGURE_WIDTH_IN, DPI = 7.0, 110
+"""Every map picture is 7 inches (770 px) wide; its height follows the map's shape."""
 
 
 def _union_spec(spec: GridSpec, other: GridSpec | None) -> GridSpec:
@@ -33,43 +37,66 @@ def _union_spec(spec: GridSpec, other: GridSpec | None) -> GridSpec:
     return GridSpec((left, bottom), spec.resolution_m, (rows, cols))
 
 
+def map_picture(
+    cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap | None = None
+) -> tuple[np.ndarray, GridSpec]:
+    """((rows, cols, 3) uint8 RGB, its grid): the map's cells over the union of its grid and
+    the truth's (row 0 the lowest y), true walls tinted red."""
+    canvas = _union_spec(spec, truth.spec if truth is not None else None)
+    if min(canvas.shape) == 0:
+        raise MapFileError("cannot draw an empty map")
+    map_cells = resample_nearest(np.asarray(cells, dtype=np.int8), spec, canvas, UNKNOWN)
+    image = np.zeros((*canvas.shape, 3), dtype=float)
+    for value, colour in MAP_COLOURS.items():
+        image[map_cells == value] = colour
+    if truth is not None:
+        walls = resample_nearest(truth.cells, truth.spec, canvas, UNKNOWN) == OCCUPIED
+        image[walls] = 0.5 * image[walls] + 0.5 * WALL_RED
+    return image.astype(np.uint8), canvas
+
+
 def render_map_png(
     path: Path | str,
     cells: np.ndarray,
     spec: GridSpec,
     truth: GroundTruthMap | None = None,
     trajectory_xy_m: np.ndarray | None = None,
-    min_side_px: int = 600,
+    title: str = "map",
 ) -> Path:
-    """Write a picture of a trinary map (north up) and return its path.
+    """Write a picture of a trinary map over ``spec`` (north up, axes in metres) with the true
+    walls, the path ``trajectory_xy_m`` (N, 2) world positions, ``title`` and a legend."""
+    import matplotlib
 
-    cells: (rows, cols) int8 100 / 0 / -1 over ``spec``. Map cells are black (occupied),
-    white (free) or grey (unknown); ground-truth occupied cells are tinted red (dark red where
-    the map agrees); ``trajectory_xy_m`` (N, 2) world positions are drawn as a blue line.
-    Cells are enlarged to whole pixels so the shorter side reaches ``min_side_px`` (the
-    longer side stays within 4000 pixels).
-    """
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     path = Path(path)
-    canvas = _union_spec(spec, truth.spec if truth is not None else None)
-    if min(canvas.shape) == 0:
-        raise MapFileError(f"cannot render an empty map to {path}")
-    map_cells = resample_nearest(np.asarray(cells, dtype=np.int8), spec, canvas, UNKNOWN)
-    image = np.zeros((*canvas.shape, 3), dtype=float)
-    for value, colour in _GREY.items():
-        image[map_cells == value] = colour
+    try:
+        image, canvas = map_picture(cells, spec, truth)
+    except MapFileError:
+        raise MapFileError(f"cannot render an empty map to {path}") from None
+    rows, cols = canvas.shape
+    height_in = float(np.clip((FIGURE_WIDTH_IN - 1.8) * rows / cols + 1.0, 3.0, 10.0))
+    fig, ax = plt.subplots(figsize=(FIGURE_WIDTH_IN, height_in), dpi=DPI, layout="constrained")
+    ax.imshow(image, origin="lower", extent=canvas.extent_m, interpolation="nearest")
+    handles = [
+        Patch(facecolor="black", label="occupied"),
+        Patch(facecolor="white", edgecolor="0.5", label="free"),
+        Patch(facecolor=np.array(MAP_COLOURS[UNKNOWN]) / 255, label="unknown"),
+    ]
     if truth is not None:
-        walls = resample_nearest(truth.cells, truth.spec, canvas, UNKNOWN) == OCCUPIED
-        image[walls] = 0.5 * image[walls] + 0.5 * _RED
-    scale = max(
-        1, min(math.ceil(min_side_px / min(canvas.shape)), _MAX_SIDE_PX // max(canvas.shape))
-    )
-    image = np.repeat(np.repeat(image, scale, axis=0), scale, axis=1)
-    image = np.ascontiguousarray(np.flipud(image).astype(np.uint8))
+        handles.append(Patch(facecolor=WALL_RED / 255, label="true wall"))
     if trajectory_xy_m is not None and len(trajectory_xy_m) > 1:
-        xy = (np.asarray(trajectory_xy_m, dtype=float) - canvas.origin_xy_m) / canvas.resolution_m
-        pixels = np.stack([xy[:, 0] * scale, image.shape[0] - xy[:, 1] * scale], axis=1)
-        cv2.polylines(image, [np.round(pixels).astype(np.int32)], False, _BLUE, 2, cv2.LINE_AA)
+        xy = np.asarray(trajectory_xy_m, dtype=float)
+        ax.plot(xy[:, 0], xy[:, 1], color=PATH_BLUE, lw=1.2)
+        handles.append(Line2D([], [], color=PATH_BLUE, label="path"))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title, fontsize=9)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), image):
-        raise MapFileError(f"could not write map picture {path}")
+    fig.savefig(path)
+    plt.close(fig)
     return path

@@ -17,6 +17,8 @@ import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any
 
+import numpy as np
+
 from smokyslam.config import CameraOdometryConfig
 from smokyslam.frontends.camera.odometry import CameraOdometry
 from smokyslam.frontends.camera.result import CameraOdometryResult
@@ -37,13 +39,19 @@ class SmokyCamera:
         config: CameraOdometryConfig,
         camera_height_m: float | None,
         smoke: SmokeEmulator,
+        keep_views: bool,
     ) -> None:
+        """``keep_views``: results carry their images and features (for a recording)."""
         self.odometry = CameraOdometry(intrinsics, config, camera_height_m)
         self.smoke = smoke
+        self.keep_views = keep_views
 
     def track(self, frame: CameraFrame) -> Tracked:
         start = time.perf_counter()
-        result = self.odometry.track(self.smoke.apply(frame))
+        smoked = self.smoke.apply(frame)
+        result = self.odometry.track(smoked)
+        if self.keep_views:
+            result.view = self.odometry.view(np.asarray(smoked.image, dtype=np.uint8))
         return result, time.perf_counter() - start
 
 
@@ -72,8 +80,10 @@ class CameraStage:
         smoke: SmokeEmulator,
         stride: int,
         worker: bool,
+        keep_views: bool,
     ) -> None:
-        camera = (intrinsics, config, camera_height_m, smoke)
+        """``keep_views``: results carry the frame's images and features (a recording)."""
+        camera = (intrinsics, config, camera_height_m, smoke, keep_views)
         self._stride = stride
         self._seen = 0
         self._needs_depth = smoke.needs_depth

@@ -123,6 +123,8 @@ def compare(
     workers: int | None = None,
     on_progress: ProgressCallback | None = None,
     overwrite: bool = False,
+    rerun_path: Path | str | None = None,
+    rerun_spawn: bool = False,
 ) -> CompareResult:
     """Run every source at every level over the log; write the runs, the table and the plots.
 
@@ -130,6 +132,8 @@ def compare(
     with status ``failed``; only bad arguments (ConfigError), an unreadable log or an output
     folder holding an earlier comparison (without ``overwrite``) raise. Ctrl-C writes the
     table of the runs so far (the others ``interrupted``) and raises RunInterruptedError.
+    ``rerun_path`` / ``rerun_spawn``: every run's path in one Rerun recording, written there
+    and/or streamed to a viewer.
     """
     from smokyslam.evaluation.compare_plot import plot_ate_vs_smoke, plot_trajectories
     from smokyslam.frontends.readers.registry import log_format
@@ -151,6 +155,8 @@ def compare(
     if interrupted:  # the table of what finished, marked; no plots
         raise RunInterruptedError(out_dir)
     gt_map = _ground_truth_map(log_path, config)
+    if rerun_path is not None or rerun_spawn:
+        record_rows(rows, gt_map, None if rerun_path is None else Path(rerun_path), rerun_spawn)
     return CompareResult(
         rows=rows,
         out_dir=out_dir,
@@ -182,6 +188,28 @@ def make_jobs(
         for level in levels
         for source in sources
     ]
+
+
+def record_rows(
+    rows: Sequence[CompareRow], gt_map, path: Path | None, spawn: bool = False, maps=None
+) -> Path | None:
+    """One Rerun recording of every finished run's path (read from its ``trajectory.tum``)
+    over the truth (the first ``ground_truth.tum``), and ``maps`` (name -> (cells, spec))."""
+    from smokyslam.evaluation.trajectory_io import read_tum
+    from smokyslam.viz.comparison import RecordedRun, record_runs
+
+    runs, truth = [], None
+    for row in rows:
+        if not (row.ok and (row.run_dir / "trajectory.tum").is_file()):
+            continue
+        runs.append(
+            RecordedRun(row.run_dir.name, row.source, *read_tum(row.run_dir / "trajectory.tum"))
+        )
+        if truth is None and (row.run_dir / "ground_truth.tum").is_file():
+            truth = RecordedRun(
+                "ground_truth", "ground_truth", *read_tum(row.run_dir / "ground_truth.tum")
+            )
+    return record_runs(path, runs, truth, gt_map, spawn, maps)
 
 
 def _ground_truth_map(log_path: Path, config: SmokySlamConfig):

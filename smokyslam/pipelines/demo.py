@@ -7,6 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig
+from smokyslam.evaluation.compare_plot import plot_trajectories
+from smokyslam.evaluation.compare_table import CompareRow, RunStatus
+from smokyslam.evaluation.demo_summary import write_summary
+from smokyslam.frontends.readers.registry import open_log
 from smokyslam.outputs import claim_folder
 from smokyslam.pipelines.run import SOURCES, RunResult, run_log
 from smokyslam.pipelines.truth_mapping import run_truth_mapping
@@ -17,7 +21,14 @@ DEMO_WORLD, DEMO_SEED = "office", 7
 DEMO_SMOKE = parse_smoke("0.1:0.2")  # the paper's middle smoke level
 DEMO_SOURCES = ("fused", "radar", "camera", "dead-reckoning")
 DEMO_LOG = f"{DEMO_WORLD}.mcap"
-DEMO_OUTPUTS = (DEMO_LOG, "map_ground_truth", *(f"run-{source}" for source in DEMO_SOURCES))
+DEMO_RECORDING = "run-fused/run.rrd"
+DEMO_OUTPUTS = (
+    DEMO_LOG,
+    "map_ground_truth",
+    *(f"run-{source}" for source in DEMO_SOURCES),
+    "summary.md",
+    "trajectories.png",
+)
 
 
 @dataclass
@@ -25,6 +36,8 @@ class DemoResult:
     simulation: SimulationResult
     mapping_dir: Path
     runs: list[RunResult]
+    summary: Path
+    recording: Path
 
 
 def run_demo(
@@ -35,7 +48,8 @@ def run_demo(
     smoke: SmokeLevel = DEMO_SMOKE,
     overwrite: bool = False,
 ) -> DemoResult:
-    """Simulate, map on ground truth, then run every available source under ``smoke``.
+    """Simulate, map on ground truth, run every available source under ``smoke`` (the fused
+    run recorded for Rerun), then sum up: ``summary.md`` and ``trajectories.png``.
 
     A folder holding an earlier demo is refused unless ``overwrite``, which replaces it.
     """
@@ -50,7 +64,24 @@ def run_demo(
     step("radar map on ground-truth poses")
     mapping = run_truth_mapping(log_path, smoky, out_dir / "map_ground_truth")
     runs = []
+    recording = out_dir / DEMO_RECORDING
     for source in (s for s in DEMO_SOURCES if s in SOURCES):
         step(f"{source} run under smoke {smoke.notation}")
-        runs.append(run_log(log_path, source, smoky, out_dir / f"run-{source}"))
-    return DemoResult(simulation, mapping.out_dir, runs)
+        rerun = recording if source == "fused" else None
+        runs.append(run_log(log_path, source, smoky, out_dir / f"run-{source}", rerun_path=rerun))
+    step("summary")
+    rows = [CompareRow(r.source, smoke, r.out_dir, RunStatus.OK, metrics=r.metrics) for r in runs]
+    gt_map = open_log(log_path, config).ground_truth_map()
+    plot_trajectories(out_dir / "trajectories.png", rows, gt_map)
+    title = (
+        f"smokyslam demo: {duration_s:.0f} s in a simulated {DEMO_WORLD} (seed {DEMO_SEED}), "
+        f"smoke {smoke.notation} (radar loss : camera noise)"
+    )
+    summary = write_summary(
+        out_dir / "summary.md",
+        title,
+        rows,
+        mapping.metrics,
+        recording if recording.is_file() else None,
+    )
+    return DemoResult(simulation, mapping.out_dir, runs, summary, recording)

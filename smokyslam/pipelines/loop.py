@@ -6,22 +6,19 @@ radar scan here; the camera frame where the camera tracks it). Then, in the log'
 1. the frontends the source needs (radar odometry or dead reckoning; camera odometry);
 2. the backend (keyframes, factors, loop closures, one iSAM2 update per keyframe);
 3. the online maps (a radar keyframe's scan; a metric camera keyframe's landmarks);
-4. the recorder (Rerun, or nothing).
+4. the recorder (Rerun, or nothing): every frame, every tracked camera frame, and snapshots
+   of the graph and the maps when it asks for them.
 
 The sources differ only in the stages switched on (``sources.py``). The camera may track in a
-worker process; :class:`_InOrder` hands its results to the backend in the order one process
+worker process; :class:`InOrder` hands its results to the backend in the order one process
 would have, so results do not depend on timing. Ground truth never enters: readers yield
 sensor frames only, and evaluation reads the truth apart, after the loop.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import time
-from collections import deque
-from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import Future
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,10 +30,12 @@ from smokyslam.frontends.camera.result import CameraOdometryResult
 from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
 from smokyslam.fusion.trust import TrustModel
 from smokyslam.mapping.online import OnlineMaps
-from smokyslam.pipelines.camera_stage import CameraStage, Tracked
+from smokyslam.pipelines.camera_stage import CameraStage
+from smokyslam.pipelines.health import RunHealth
+from smokyslam.pipelines.ordering import InOrder, StageClock
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan
-from smokyslam.viz.rerun_recorder import Recorder
+from smokyslam.viz.recorder import Due, FrameRecord, Recorder, RunSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -87,6 +86,7 @@ class RunEstimate:
     time. maps: the online maps, to snapshot or render in any
     frame. graph: the backend's numbers (factors, keyframes, camera pairs, stage seconds), as
     ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
+    health: the odometry's and the camera's health over time.
     """
 
     stamps_s: np.ndarray
@@ -99,50 +99,8 @@ class RunEstimate:
     maps: OnlineMaps
     graph: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    health: RunHealth = field(default_factory=RunHealth)
     interrupted: bool = False
-
-
-class _Clock:
-    """Busy seconds per stage."""
-
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {}
-
-    def add(self, stage: str, seconds: float) -> None:
-        self.seconds[stage] = self.seconds.get(stage, 0.0) + seconds
-
-    @contextlib.contextmanager
-    def time(self, stage: str) -> Iterator[None]:
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.add(stage, time.perf_counter() - start)
-
-
-class _InOrder:
-    """Radar frames and camera results (finished, or still tracking in the worker) in the
-    log's order; :meth:`ready` hands out the front of the queue up to the first camera frame
-    still tracking, waiting for it only while more than ``keep`` items are queued."""
-
-    def __init__(self) -> None:
-        self._queue: deque[RadarFrame | Future | Tracked] = deque()
-
-    def __len__(self) -> int:
-        return len(self._queue)
-
-    def extend(self, items: Iterable[RadarFrame | Future | Tracked]) -> None:
-        self._queue.extend(items)
-
-    def ready(self, keep: int) -> Iterator[RadarFrame | Tracked]:
-        while self._queue:
-            item = self._queue[0]
-            if isinstance(item, Future):
-                if not item.done() and len(self._queue) <= keep:
-                    return
-                item = item.result()
-            self._queue.popleft()
-            yield item
 
 
 class RunLoop:
@@ -151,9 +109,12 @@ class RunLoop:
     def __init__(self, stages: Stages, on_progress: ProgressCallback | None = None) -> None:
         self.stages = stages
         self._on_progress = on_progress
-        self._order = _InOrder()
-        self._clock = _Clock()
+        self._order = InOrder()
+        self._clock = StageClock()
         self._camera_restarts = 0
+        self._frames = 0
+        self._last_stamp_s: float | None = None
+        self._health = RunHealth()
 
     def run(self, frames: Iterable[Frame]) -> RunEstimate:
         """Every frame through the stages, then the estimate (the camera worker is stopped
@@ -166,6 +127,8 @@ class RunLoop:
                     self._read(frame)
                     self._hand_over(keep=MAX_LAG)
                 self._finish()
+                if self._last_stamp_s is not None:  # the final graph and maps, when recorded
+                    self._snapshot(self._last_stamp_s, self.stages.recorder.due(float("inf")))
             except KeyboardInterrupt:
                 interrupted = True
                 logger.info("interrupted: keeping what was processed so far")
@@ -223,6 +186,10 @@ class RunLoop:
     def _camera_result(self, result: CameraOdometryResult) -> None:
         stages = self.stages
         self._camera_restarts = result.reinitializations
+        trust_index = float(self._trust_index(result))
+        self._health.add_camera(result, trust_index)
+        with self._clock.time("recorder"):
+            stages.recorder.log_camera(result, trust_index)
         if stages.camera_steps is not None:  # the camera carries the trajectory
             for step in stages.camera_steps.add(result):
                 self._camera_step(step)
@@ -243,23 +210,55 @@ class RunLoop:
         if not (self.stages.visual_map and result.is_keyframe and len(result.landmarks_world)):
             return
         with self._clock.time("maps"):
-            quality = result.quality
-            camera_trust = self.stages.trust.camera_trust(
-                quality.impulse_fraction, quality.rms_contrast, not result.lost
-            )
             self.stages.maps.add_camera_keyframe(
                 result.stamp_s,
                 result.T_world_camera,
                 result.landmarks_world,
                 metres_per_unit,
-                float(camera_trust),
+                float(self._camera_trust(result)),
             )
 
+    def _camera_trust(self, result: CameraOdometryResult) -> float:
+        quality = result.quality
+        return self.stages.trust.camera_trust(
+            quality.impulse_fraction, quality.rms_contrast, not result.lost
+        )
+
+    def _trust_index(self, result: CameraOdometryResult) -> float:
+        """The trust index t this camera frame would give the radar (the paper's eq. 3)."""
+        return self.stages.trust.radar_trust(self._camera_trust(result))
+
     def _processed(self, stamp_s: float, scan: RadarScan | None) -> None:
-        backend = self.stages.backend
-        self.stages.recorder.log_frame(stamp_s, backend.latest_pose(), scan)
+        backend, recorder = self.stages.backend, self.stages.recorder
+        with self._clock.time("recorder"):
+            record = FrameRecord(self._frames, stamp_s, backend.latest_pose(), scan, backend.status)
+            recorder.log_frame(record)
+            self._snapshot(stamp_s, recorder.due(stamp_s))
+        self._health.add_frame(stamp_s, backend.status)
+        self._frames += 1
+        self._last_stamp_s = stamp_s
         if self._on_progress is not None:
             self._on_progress(stamp_s, backend.status.text())
+
+    def _snapshot(self, stamp_s: float, due: Due) -> None:
+        """The graph (and, when due, the maps) to the recorder, when it asks for them."""
+        if not due:
+            return
+        backend = self.stages.backend
+        maps = {}
+        if due.maps:
+            maps = {
+                name: (grid.to_cells(), grid.spec) for name, grid in self.stages.maps.maps().items()
+            }
+        self.stages.recorder.log_snapshot(
+            RunSnapshot(
+                stamp_s,
+                backend.poses_world_base(),
+                backend.keyframe_poses(),
+                np.asarray(backend.loop_edges, dtype=int).reshape(-1, 2),
+                maps,
+            )
+        )
 
     # ------------------------------------------------------------------ result
 
@@ -308,4 +307,5 @@ class RunLoop:
             maps=self.stages.maps,
             graph=graph,
             extra=extra,
+            health=self._health,
         )

@@ -28,7 +28,7 @@ from smokyslam.fusion.placement import place_visual_map
 from smokyslam.fusion.trust import load_trust, trust_beside
 from smokyslam.mapio import MapImage, load_map, save_map
 from smokyslam.outputs import claim_folder
-from smokyslam.pipelines.compare import compare
+from smokyslam.pipelines.compare import compare, record_rows
 from smokyslam.pipelines.run_outputs import UNALIGNED_VISUAL
 from smokyslam.smoke import SmokeLevel
 
@@ -73,8 +73,12 @@ def paper_table(
     workers: int | None = None,
     on_progress: ProgressCallback | None = None,
     overwrite: bool = False,
+    rerun_path: Path | str | None = None,
+    rerun_spawn: bool = False,
 ) -> PaperTableResult:
-    """Table I of the log at ``log_path`` into ``out_dir`` (see the module docstring)."""
+    """Table I of the log at ``log_path`` into ``out_dir`` (see the module docstring).
+    ``rerun_path`` / ``rerun_spawn``: the six runs' paths and the twelve maps in one Rerun
+    recording."""
     started = time.perf_counter()
     log_path, out_dir = Path(log_path), Path(out_dir)
     claim_folder(out_dir, overwrite, PAPER_TABLE_OUTPUTS, markers=PAPER_TABLE_OUTPUTS[:2])
@@ -121,6 +125,14 @@ def paper_table(
         )
     write_table(out_dir, rows, truth_name, log_path)
     plot_table_maps(out_dir / "maps.png", rows, maps, truth)
+    if rerun_path is not None or rerun_spawn:
+        pictures = {
+            f"map_{i:02d}": (image.cells, image.spec)
+            for i, image in maps.items()
+            if image is not None
+        }
+        path = None if rerun_path is None else Path(rerun_path)
+        record_rows(runs.rows, truth, path, rerun_spawn, pictures)
     return PaperTableResult(rows, truth_name, out_dir, time.perf_counter() - started)
 
 

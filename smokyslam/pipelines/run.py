@@ -25,8 +25,8 @@ from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunEstimate, RunLoop
 from smokyslam.pipelines.run_outputs import record_results, write_maps, write_trajectory
 from smokyslam.pipelines.sources import SOURCES, build_stages, get_source
-from smokyslam.types import GroundTruthTrajectory
-from smokyslam.viz.rerun_recorder import NullRecorder, Recorder, open_recorder
+from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
+from smokyslam.viz.recorder import NullRecorder, Recorder, RecordingSetup, open_recorder
 
 logger = logging.getLogger(__name__)
 
@@ -71,6 +71,23 @@ def evaluate_source(
     )
 
 
+def _recording_setup(
+    reader: LogReader,
+    source: str,
+    truth: GroundTruthTrajectory | None,
+    gt_map: GroundTruthMap | None,
+) -> RecordingSetup:
+    """What the recorder shows before the first frame (the truth only to the recorder)."""
+    return RecordingSetup(
+        source,
+        reader.extrinsics(),
+        reader.camera_intrinsics(),
+        reader.log_time_s,
+        truth,
+        gt_map,
+    )
+
+
 @contextlib.contextmanager
 def _dense_closed(estimate: RunEstimate) -> Iterator[None]:
     try:
@@ -88,12 +105,14 @@ def run_log(
     on_progress: ProgressCallback | None = None,
     rerun_path: Path | str | None = None,
     overwrite: bool = False,
+    rerun_spawn: bool = False,
 ) -> RunResult:
     """Run ``source`` over the log at ``log_path`` and write its outputs into ``out_dir``.
 
     on_progress: (stamp_s, health text) as frames are processed. rerun_path: also write a
-    Rerun recording (``.rrd``) there. overwrite: replace an earlier run's outputs in
-    ``out_dir`` (otherwise such a folder is refused).
+    Rerun recording (``.rrd``) there, as the run goes; rerun_spawn: stream it to a viewer.
+    overwrite: replace an earlier run's outputs in ``out_dir`` (otherwise such a folder is
+    refused).
     """
     spec = get_source(source)
     config = config_for_log(log_path, config)
@@ -101,17 +120,18 @@ def run_log(
     with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
         reader = open_log(log_path, config, require=spec.requires)
-        recorder = open_recorder(rerun_path)
+        truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
+        recorder = open_recorder(rerun_path, config.recording, rerun_spawn)
+        recorder.start(_recording_setup(reader, source, truth, gt_map))
         estimate = run_source(reader, source, config, on_progress, recorder)
         with _dense_closed(estimate):  # the up-sampling worker stops, whatever happens
-            truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
             evaluation = evaluate_source(estimate, truth, source)
-            write_trajectory(out, source, estimate, evaluation, truth, gt_map)
+            write_trajectory(out, source, estimate, evaluation, truth, gt_map, reader)
             observed = reader.observed_ground_truth_map()
-            write_maps(out, estimate, evaluation, gt_map, observed, spec.camera_only)
+            write_maps(out, source, estimate, evaluation, gt_map, observed, spec.camera_only)
             if (dense := estimate.maps.dense) is not None:
                 out.update_metrics({"upsample": dense.stats()})
-        record_results(recorder, source, estimate, evaluation, truth, gt_map, out)
+        record_results(recorder, estimate, evaluation)
         if problems := reader.problems():
             out.update_metrics({"log": problems})
         if estimate.interrupted:

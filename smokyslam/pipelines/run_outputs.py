@@ -11,16 +11,18 @@ from typing import Any
 
 import numpy as np
 
-from smokyslam.evaluation.map_metrics import map_scores
+from smokyslam.evaluation.map_metrics import map_scores, score_text
 from smokyslam.evaluation.run_evaluation import RunEvaluation
+from smokyslam.evaluation.run_plots import plot_error, plot_health
 from smokyslam.evaluation.trajectory_io import write_kitti, write_tum
 from smokyslam.evaluation.trajectory_plot import plot_trajectory
+from smokyslam.frontends.readers.base import LogReader
 from smokyslam.fusion.fuse import FUSED_MAP
 from smokyslam.fusion.trust import TRUST_SUFFIX, save_trust
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunEstimate
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
-from smokyslam.viz.rerun_recorder import Recorder
+from smokyslam.viz.recorder import Recorder
 
 logger = logging.getLogger(__name__)
 
@@ -35,14 +37,19 @@ def write_trajectory(
     evaluation: RunEvaluation,
     truth: GroundTruthTrajectory | None,
     gt_map: GroundTruthMap | None,
+    reader: LogReader,
 ) -> dict[str, Any]:
-    """``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum``, ``trajectory.png``
-    and the ``odometry``, ``trajectory`` and ``alignment`` parts of ``metrics.json``."""
+    """``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum``, the plots
+    (``trajectory.png``, ``error.png`` with ground truth, ``health.png``) and the
+    ``odometry``, ``trajectory`` and ``alignment`` parts of ``metrics.json``. TUM files are
+    stamped on the log's own clock (``reader.log_time_s``), as evo expects."""
     poses = evaluation.to_truth.apply(estimate.poses_world_base)
-    write_tum(out.path("trajectory.tum"), estimate.stamps_s, poses)
+    write_tum(out.path("trajectory.tum"), reader.log_time_s(estimate.stamps_s), poses)
     write_kitti(out.path("trajectory_kitti.txt"), poses)
     if truth is not None:
-        write_tum(out.path("ground_truth.tum"), truth.stamps_s, truth.poses_world_base)
+        write_tum(
+            out.path("ground_truth.tum"), reader.log_time_s(truth.stamps_s), truth.poses_world_base
+        )
     metrics: dict[str, Any] = {
         "odometry": {
             "source": source,
@@ -62,11 +69,15 @@ def write_trajectory(
         evaluation.trajectory,
         gt_map,
     )
+    if truth is not None and evaluation.trajectory is not None:
+        plot_error(out.path("error.png"), source, estimate.stamps_s, poses, estimate.lost, truth)
+    plot_health(out.path("health.png"), source, estimate.health)
     return out.update_metrics(metrics)
 
 
 def write_maps(
     out: OutputFolder,
+    source: str,
     estimate: RunEstimate,
     evaluation: RunEvaluation,
     gt_map: GroundTruthMap | None,
@@ -84,14 +95,22 @@ def write_maps(
     rendered = estimate.maps.render(evaluation.pose_truth_map)
     for name, grid in rendered.items():
         cells = grid.to_cells()
-        if out.write_map(name, cells, grid.spec, gt_map, path_xy) is not None and scored:
-            scores = map_scores(cells, grid.spec, gt_map, observed)
+        scores = map_scores(cells, grid.spec, gt_map, observed) if scored and cells.size else None
+        caption = f"{source} run" + (score_text(scores) if scores else "")
+        written = out.write_map(name, cells, grid.spec, gt_map, path_xy, caption)
+        if written is not None and scores is not None:
             out.update_metrics({"maps": {name: scores}})
     if "visual" in rendered and estimate.maps.fuser is not None:
         _write_trust(out, estimate, "visual", rendered["visual"].spec, evaluation.pose_truth_map)
         if keep_unaligned:
             own = estimate.maps.render(np.zeros(3))["visual"]
-            out.write_map(UNALIGNED_VISUAL, own.to_cells(), own.spec)
+            out.write_map(
+                UNALIGNED_VISUAL,
+                own.to_cells(),
+                own.spec,
+                trajectory_xy_m=estimate.poses_world_base[:, :2],
+                caption=f"{source} run, in its own frame (before registration)",
+            )
             _write_trust(out, estimate, UNALIGNED_VISUAL, own.spec, np.zeros(3))
     if FUSED_MAP in rendered:
         out.update_metrics({"fusion": rendered[FUSED_MAP].summary()})
@@ -105,25 +124,8 @@ def _write_trust(
     out.update_metrics({"fusion": {"trust_run": t_run}})
 
 
-def record_results(
-    recorder: Recorder,
-    source: str,
-    estimate: RunEstimate,
-    evaluation: RunEvaluation,
-    truth: GroundTruthTrajectory | None,
-    gt_map: GroundTruthMap | None,
-    out: OutputFolder,
-) -> None:
-    """The end of the run's recording: where its map frame lies, the final path, the maps and
-    the ground truth (or nothing, with the null recorder)."""
-    recorder.log_alignment(evaluation.pose_truth_map)
-    recorder.log_trajectory(
-        source, estimate.stamps_s, evaluation.to_truth.apply(estimate.poses_world_base)
-    )
-    if truth is not None or gt_map is not None:
-        stamps = truth.stamps_s if truth is not None else np.zeros(0)
-        poses = truth.poses_world_base if truth is not None else np.zeros((0, 3))
-        recorder.log_ground_truth(gt_map, stamps, poses)
-    for name, (cells, spec) in out.maps.items():
-        recorder.log_map(name, cells, spec)
+def record_results(recorder: Recorder, estimate: RunEstimate, evaluation: RunEvaluation) -> None:
+    """The end of the run's recording: where its map frame lies in the world, and the final
+    path (nothing, with the null recorder)."""
+    recorder.log_result(evaluation.pose_truth_map, estimate.stamps_s, estimate.poses_world_base)
     recorder.close()

@@ -32,7 +32,7 @@ from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.loop import Stages
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.upsample.online import DenseRefresher
-from smokyslam.viz.rerun_recorder import Recorder
+from smokyslam.viz.recorder import Recorder
 
 logger = logging.getLogger(__name__)
 
@@ -116,8 +116,8 @@ def build_stages(
             smoke,
             stride=1 if source.camera_only else config.slam.camera_stride,
             worker=config.slam.camera_process and not source.camera_only,
+            keep_views=recorder.keeps_camera_views,
         )
-    recorder.log_rig(extrinsics)
     return Stages(
         smoke=smoke,
         radar=radar,

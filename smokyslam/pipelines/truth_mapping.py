@@ -14,7 +14,7 @@ from pathlib import Path
 from smokyslam.backends.keyframes import get_keyframe_gate
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import LogError
-from smokyslam.evaluation.map_metrics import map_scores
+from smokyslam.evaluation.map_metrics import map_scores, score_text
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.mapping.build import build_radar_map
 from smokyslam.mapping.grid import OccupancyGrid
@@ -73,9 +73,12 @@ def run_truth_mapping(
         for name, drawn in maps.items():
             cells = drawn.to_cells()
             path_xy = truth.poses_world_base[:, :2]
-            written = out.write_map(name, cells, drawn.spec, gt_map, path_xy)
-            if gt_map is not None and written is not None:
+            scores = None
+            if gt_map is not None and cells.size:
                 scores = map_scores(cells, drawn.spec, gt_map, observed)
+            caption = "on ground-truth poses" + (score_text(scores) if scores else "")
+            written = out.write_map(name, cells, drawn.spec, gt_map, path_xy, caption)
+            if scores is not None and written is not None:
                 metrics.setdefault("maps", {})[name] = scores
         wall_s = time.perf_counter() - started
         out.update_metrics({**metrics, "wall_s": wall_s})

@@ -1,178 +1,218 @@
-"""A run as a Rerun recording (``.rrd``), for inspecting trajectories in the Rerun viewer.
+"""A run as a Rerun recording (``.rrd``, or a spawned viewer), logged as the run goes.
 
-Entity paths mirror the frame tree. ``world`` is the ground-truth frame (the estimate's own
-frame without ground truth); ``world/map`` is the run's map frame, placed in it by the run's
-alignment once the run is evaluated. ``world/map/rig`` moves with base_link as the run goes,
-``world/map/rig/radar`` holds each radar frame's levelled points under the (static) levelled
-mount. The final trajectory, maps and ground truth are static entities under ``world/``.
-Time is ``sensor_time``, seconds from the log's start. :class:`NullRecorder` stands in when no
-recording is asked for, so callers never branch on "if visualize".
+Entity paths follow the frame tree. ``world`` is the ground-truth frame (the estimate's own
+frame without ground truth). ``world/map`` is the run's map frame: anchored at the true start
+pose while the run goes (when the log has truth), placed by the run's alignment at the end.
+``world/map/rig`` moves with base_link; ``world/map/rig/radar`` (levelled mount) holds each
+radar frame's points coloured by Doppler; ``world/map/rig/camera`` (mount) holds the pinhole
+and the smoked image with its tracked features; ``camera/clean`` the preprocessed image.
+``world/map/trajectory/<source>``, ``world/map/keyframes``, ``world/map/loop_closures`` and
+``world/map/maps/<name>`` (grid maps) grow at the configured rates. Time series live under
+``health/``, ``smoke/``, ``trust/`` and ``error/``. Timelines: ``sensor_time`` (the log's own
+clock) and ``frame`` (primary frame index), set once per frame.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Protocol
 
+import cv2
 import numpy as np
 
-from smokyslam.geometry import GridSpec, se2_from_matrix, se3_from_se2
-from smokyslam.mapio import OCCUPIED
-from smokyslam.types import Extrinsics, GroundTruthMap, RadarScan
+from smokyslam.config import RecordingConfig
+from smokyslam.frontends.camera.result import CameraOdometryResult
+from smokyslam.geometry import GridSpec, se3_from_se2
+from smokyslam.viz.colors import doppler_colors, map_rgba, source_color, truth_rgba
+from smokyslam.viz.layout import run_blueprint
+from smokyslam.viz.recorder import Due, FrameRecord, RecordingSetup, RunSnapshot
+from smokyslam.viz.rerun_stream import grid_map, level_mount, open_stream, path_3d, transform
+from smokyslam.viz.series import SeriesBuffer
+from smokyslam.viz.truth_anchor import TruthAnchor
 
-
-class Recorder(Protocol):
-    """What a run logs for visualization: a stage of the run loop, then the results."""
-
-    def log_rig(self, extrinsics: Extrinsics) -> None:
-        """The sensor mounting, once, before the first frame."""
-
-    def log_frame(
-        self, stamp_s: float, pose_world_base: np.ndarray, radar_scan: RadarScan | None
-    ) -> None:
-        """One primary frame as the run processes it: the rig's current estimate (map frame)
-        and, for radar, the levelled scan."""
-
-    def log_alignment(self, T_world_map: np.ndarray) -> None:
-        """Where the run's map frame lies in the world (ground-truth) frame, (3,)."""
-
-    def log_ground_truth(
-        self, gt_map: GroundTruthMap | None, stamps_s: np.ndarray, poses: np.ndarray
-    ) -> None: ...
-
-    def log_trajectory(self, source: str, stamps_s: np.ndarray, poses_world_base: np.ndarray):
-        """The final trajectory, world frame."""
-
-    def log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None:
-        """A final map, world frame."""
-
-    def close(self) -> None: ...
-
-
-class NullRecorder:
-    """Records nothing."""
-
-    def log_rig(self, extrinsics) -> None:
-        pass
-
-    def log_frame(self, stamp_s, pose_world_base, radar_scan) -> None:
-        pass
-
-    def log_alignment(self, T_world_map) -> None:
-        pass
-
-    def log_ground_truth(self, gt_map, stamps_s, poses) -> None:
-        pass
-
-    def log_trajectory(self, source, stamps_s, poses_world_base) -> None:
-        pass
-
-    def log_map(self, name, cells, spec) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _occupied_points(cells: np.ndarray, spec: GridSpec) -> np.ndarray:
-    """(N, 3) world centres (z = 0) of the occupied cells of a trinary grid."""
-    iy, ix = np.nonzero(np.asarray(cells) == OCCUPIED)
-    xy = spec.centres_of(np.column_stack([ix, iy]))
-    return np.column_stack([xy, np.zeros(len(xy))])
-
-
-def level_mount(T_base_radar: np.ndarray) -> np.ndarray:
-    """(4, 4) the levelled radar frame on base_link: the radar's position, its heading only."""
-    T = se3_from_se2(se2_from_matrix(T_base_radar), float(np.asarray(T_base_radar)[2, 3]))
-    return T
-
-
-def _path_3d(poses: np.ndarray) -> np.ndarray:
-    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
-    return np.column_stack([poses[:, :2], np.zeros(len(poses))])
+MAP_HEIGHT_M = -0.02
+"""Grid maps lie just below the floor, so paths and points stay visible on them."""
 
 
 class RerunRecorder:
-    """Writes a ``.rrd`` file that ``rerun FILE.rrd`` opens."""
+    """The recorder stage writing Rerun: see the module docstring for what goes where."""
 
-    def __init__(self, path: Path | str, application_id: str = "smokyslam") -> None:
+    def __init__(
+        self, path: Path | str | None, config: RecordingConfig, spawn: bool = False
+    ) -> None:
         import rerun as rr
 
         self._rr = rr
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._rec = rr.RecordingStream(application_id)
-        self._rec.save(str(self.path))
-        self._rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        self.path = None if path is None else Path(path)
+        self._config = config
+        self._rec = open_stream(self.path, spawn, run_blueprint())
+        self._source = "run"
+        self._anchor: TruthAnchor | None = None
+        self._log_time = None
+        self._next_path_s = 0.0
+        self._next_maps_s = config.maps_period_s
+        self._camera_frames = 0
+        self._frame = 0
+        self._time_s = 0.0
+        self._series = SeriesBuffer()
+        self.keeps_camera_views = True
 
-    def log_ground_truth(
-        self, gt_map: GroundTruthMap | None, stamps_s: np.ndarray, poses: np.ndarray
-    ) -> None:
-        rr = self._rr
-        if gt_map is not None:
-            walls = _occupied_points(gt_map.cells, gt_map.spec)
-            self._rec.log(
+    # ------------------------------------------------------------------ once
+
+    def start(self, setup: RecordingSetup) -> None:
+        rr, rec = self._rr, self._rec
+        self._source = setup.source
+        self._log_time = setup.log_time_s
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        rec.log("world/map/rig/radar", transform(rr, level_mount(setup.extrinsics)), static=True)
+        rec.log("world/map/rig/camera", transform(rr, setup.extrinsics.T_base_camera), static=True)
+        if (k := setup.intrinsics) is not None:
+            pinhole = rr.Pinhole(
+                focal_length=[k.fx, k.fy],
+                principal_point=[k.cx, k.cy],
+                width=k.width,
+                height=k.height,
+                camera_xyz=rr.ViewCoordinates.RDF,
+                image_plane_distance=0.5,
+            )
+            rec.log("world/map/rig/camera/image", pinhole, static=True)
+        if setup.gt_map is not None:
+            spec = setup.gt_map.spec
+            rec.log(
                 "world/ground_truth/map",
-                rr.Points3D(walls, radii=gt_map.spec.resolution_m / 2, colors=[200, 60, 60]),
+                grid_map(rr, truth_rgba(setup.gt_map.cells), spec, MAP_HEIGHT_M / 2),
                 static=True,
             )
-        if len(stamps_s):
-            self._rec.log(
+        if setup.truth is not None and len(setup.truth):
+            self._anchor = TruthAnchor(setup.truth)
+            rec.log(
                 "world/ground_truth/path",
-                rr.LineStrips3D([_path_3d(poses)], colors=[90, 90, 90]),
+                rr.LineStrips3D(
+                    [path_3d(setup.truth.poses_world_base)],
+                    colors=[source_color("ground_truth")],
+                    radii=0.02,
+                ),
                 static=True,
             )
+        for name in ("radar_inliers", "camera_tracked", "camera_weight", "loop_closures"):
+            rec.log(f"health/{name}", rr.SeriesLines(names=name), static=True)
 
-    def log_rig(self, extrinsics: Extrinsics) -> None:
-        rr = self._rr
-        T = level_mount(extrinsics.T_base_radar)
-        self._rec.log(
-            "world/map/rig/radar",
-            rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]),
-            static=True,
-        )
+    # ------------------------------------------------------------------ per frame
 
-    def log_frame(
-        self, stamp_s: float, pose_world_base: np.ndarray, radar_scan: RadarScan | None
-    ) -> None:
-        rr = self._rr
-        self._rec.set_time("sensor_time", duration=float(stamp_s))
-        T_world_base = se3_from_se2(pose_world_base)
-        self._rec.log(
-            "world/map/rig",
-            rr.Transform3D(translation=T_world_base[:3, 3], mat3x3=T_world_base[:3, :3]),
-        )
-        if radar_scan is not None:
-            self._rec.log(
+    def _set_time(self, stamp_s: float, frame: int) -> None:
+        self._time_s = float(self._log_time(np.array([stamp_s]))[0])
+        self._rec.set_time("sensor_time", timestamp=self._time_s)
+        self._rec.set_time("frame", sequence=frame)
+
+    def _scalar(self, entity: str, value: float) -> None:
+        """A time-series sample at the current time (sent in columns with the snapshots)."""
+        self._series.add(entity, self._time_s, self._frame, value)
+
+    def log_frame(self, record: FrameRecord) -> None:
+        rr, rec = self._rr, self._rec
+        self._frame = record.index
+        self._set_time(record.stamp_s, record.index)
+        if record.index == 0 and self._anchor is not None:
+            rec.log("world/map", transform(rr, self._anchor.start(record.stamp_s)))
+        rec.log("world/map/rig", transform(rr, se3_from_se2(record.pose_map_base)))
+        if record.scan is not None:
+            rec.log(
                 "world/map/rig/radar/points",
-                rr.Points3D(radar_scan.points_xyz_m, radii=0.04, colors=[250, 170, 30]),
+                rr.Points3D(
+                    record.scan.points_xyz_m,
+                    colors=doppler_colors(record.scan.doppler_mps),
+                    radii=0.05,
+                ),
+            )
+        status = record.status
+        self._scalar("health/radar_inliers", status.inliers)
+        self._scalar("health/lost", status.lost)
+        self._scalar("health/loop_closures", status.loop_closures)
+        if status.camera_frames:
+            self._scalar("health/camera_weight", status.camera_weight)
+        if self._anchor is not None:
+            error_m = self._anchor.error_m(record.stamp_s, record.pose_map_base)
+            if np.isfinite(error_m):
+                self._scalar(f"error/{self._source}/position_m", error_m)
+
+    def log_camera(self, result: CameraOdometryResult, trust_index: float) -> None:
+        rr, rec = self._rr, self._rec
+        self._set_time(result.stamp_s, self._frame)
+        quality = result.quality
+        self._scalar("smoke/impulse_fraction", quality.impulse_fraction)
+        self._scalar("smoke/rms_contrast", quality.rms_contrast)
+        self._scalar("smoke/dark_level", quality.dark_level)
+        self._scalar("trust/t", trust_index)
+        self._scalar("health/camera_tracked", 0.0 if result.lost else result.health.tracked)
+        self._camera_frames += 1
+        view = result.view
+        if view is None or (self._camera_frames - 1) % self._config.camera_every:
+            return
+        quality_jpeg = [int(cv2.IMWRITE_JPEG_QUALITY), self._config.jpeg_quality]
+        for entity, image in (
+            ("world/map/rig/camera/image", view.raw),
+            ("camera/clean", view.clean),
+        ):
+            ok, jpeg = cv2.imencode(".jpg", np.ascontiguousarray(image), quality_jpeg)
+            if ok:
+                rec.log(entity, rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
+            colors = np.where(view.has_landmark[:, None], [40, 220, 40], [250, 200, 0])
+            rec.log(
+                f"{entity}/features",
+                rr.Points2D(view.features_px, colors=colors.astype(np.uint8), radii=1.5),
             )
 
-    def log_alignment(self, T_world_map: np.ndarray) -> None:
-        T = se3_from_se2(T_world_map)
+    # ------------------------------------------------------------------ over the run
+
+    def due(self, stamp_s: float) -> Due:
+        due = Due(path=bool(stamp_s >= self._next_path_s), maps=bool(stamp_s >= self._next_maps_s))
+        if due.path:
+            self._next_path_s = stamp_s + self._config.path_period_s
+        if due.maps:
+            self._next_maps_s = stamp_s + self._config.maps_period_s
+        return due
+
+    def log_snapshot(self, snapshot: RunSnapshot) -> None:
+        rr, rec = self._rr, self._rec
+        self._series.flush(rec)
+        self._set_time(snapshot.stamp_s, self._frame)
+        self._log_path(snapshot.poses_map_base)
+        keyframes = np.asarray(snapshot.keyframe_poses).reshape(-1, 3)
+        rec.log(
+            "world/map/keyframes",
+            rr.Points3D(path_3d(keyframes), radii=0.06, colors=[255, 160, 0]),
+        )
+        edges = np.asarray(snapshot.loop_edges, dtype=int).reshape(-1, 2)
+        if len(edges):
+            strips = [path_3d(keyframes[list(edge)]) for edge in edges]
+            rec.log("world/map/loop_closures", rr.LineStrips3D(strips, colors=[255, 0, 255]))
+        for name, (cells, spec) in snapshot.maps.items():
+            self._log_map(name, cells, spec)
+
+    def _log_path(self, poses_map_base: np.ndarray) -> None:
         self._rec.log(
-            "world/map", self._rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True
+            f"world/map/trajectory/{self._source}",
+            self._rr.LineStrips3D(
+                [path_3d(poses_map_base)], colors=[source_color(self._source)], radii=0.03
+            ),
         )
 
-    def log_trajectory(self, source: str, stamps_s: np.ndarray, poses_world_base: np.ndarray):
-        self._rec.log(
-            f"world/estimate/{source}",
-            self._rr.LineStrips3D([_path_3d(poses_world_base)], colors=[40, 110, 220]),
-            static=True,
-        )
+    def _log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None:
+        self._rec.log(f"world/map/maps/{name}", grid_map(self._rr, map_rgba(cells), spec, 0.0))
 
-    def log_map(self, name: str, cells: np.ndarray, spec: GridSpec) -> None:
-        rr = self._rr
-        self._rec.log(
-            f"world/maps/{name}",
-            rr.Points3D(_occupied_points(cells, spec), radii=spec.resolution_m / 2),
-            static=True,
-        )
+    # ------------------------------------------------------------------ the end
+
+    def log_result(
+        self, T_world_map: np.ndarray, stamps_s: np.ndarray, poses_map_base: np.ndarray
+    ) -> None:
+        """The run's alignment (static: the whole run is then seen in the truth frame) and its
+        final path at the last stamp."""
+        self._rec.log("world/map", transform(self._rr, se3_from_se2(T_world_map)), static=True)
+        if len(stamps_s):
+            self._set_time(float(stamps_s[-1]), self._frame)
+            self._log_path(poses_map_base)
 
     def close(self) -> None:
+        self._series.flush(self._rec)
         self._rec.flush()
-
-
-def open_recorder(path: Path | str | None) -> Recorder:
-    """A RerunRecorder writing ``path``, or a NullRecorder when ``path`` is None."""
-    return NullRecorder() if path is None else RerunRecorder(path)
+        if self.path is not None:
+            self._rec.disconnect()
