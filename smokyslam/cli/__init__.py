@@ -32,6 +32,7 @@ COMMANDS = {
     "info": log_commands.info,
     "run": run_commands.run,
     "compare": run_commands.compare,
+    "sweep": run_commands.sweep,
     "map": log_commands.map_command,
     "evaluate": log_commands.evaluate,
     "upsample": map_commands.upsample,

@@ -196,3 +196,47 @@ def view(
 
     recording = open_viewer(find_recording(path))
     typer.echo(f"closed {recording}")
+
+
+def sweep(
+    sweep_file: Annotated[
+        Path, typer.Argument(help="A sweep YAML: worlds, smoke levels, sources, configs.")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (shared by workers).")],
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Address of a running Dask scheduler (default: a local cluster)."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, help="Workers of the local cluster (default: one per core)."),
+    ] = None,
+    config: ConfigOption = None,
+) -> None:
+    """Run many (world, smoke, source, config) combinations on Dask: sweep.csv, summary.md
+    and plots in --out; finished runs are kept when a sweep is run again."""
+    cfg = effective_config(config)
+    from smokyslam.outputs import writable_folder
+    from smokyslam.pipelines.sweep import sweep as run_sweep
+    from smokyslam.progress import console, progress_bar
+
+    writable_folder(out)
+    with progress_bar(f"sweep {sweep_file.name}", 0, unit="tasks") as update:
+        result = run_sweep(
+            sweep_file,
+            out,
+            cfg,
+            scheduler,
+            workers,
+            on_progress=update,
+            on_dashboard=lambda link: console.print(f"dask dashboard: {link}", markup=False),
+        )
+    typer.echo((result.out_dir / "summary.md").read_text(), nl=False)
+    total = len(result.rows)
+    typer.echo(
+        f"wrote {result.out_dir}/sweep.csv ({total} runs, {result.skipped} already finished, "
+        f"{result.wall_s:.1f} s)"
+    )
+    if result.failed:
+        typer.echo(f"error: {len(result.failed)} of {total} runs failed", err=True)
+        raise typer.Exit(1)

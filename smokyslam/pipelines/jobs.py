@@ -95,9 +95,11 @@ def _interrupt_once(signum: int, frame: object) -> None:
 
 @contextlib.contextmanager
 def _interruptible():
-    """Ctrl-C reaches the run in a worker (which otherwise ignores it)."""
-    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
-        yield  # not a worker: the caller's own handling applies
+    """Ctrl-C reaches the run in a worker process (which otherwise ignores it). Elsewhere,
+    and off the main thread (a Dask worker's task), the caller's own handling applies."""
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        yield
         return
     signal.signal(signal.SIGINT, _interrupt_once)
     try:

@@ -1,0 +1,1 @@
+"""``smokyslam sweep``: many runs over worlds, smoke levels, sources and configs, on Dask."""
