@@ -4,11 +4,12 @@ The camera runs at its own rate, so its poses are kept for a while and interpola
 two keyframe stamps (in the same camera map: never across a reinitialization or a lost frame).
 The relative motion, up to scale, is made metric by the windowed scale estimated against the
 radar step of the same pair, moved from the camera body to base_link through the mount, and
-weighted by the camera gate (health: impulse noise, contrast, tracks, inliers). A factor that
-disagrees with the radar step beyond ``consistency_chi2`` is not added: a bad camera must never
-make the fused estimate worse than radar alone. The default gate is strict (chi2 3 on 3 dof):
-measured on simulated office walks, the camera's reported covariances were about 10x too
-small (NEES ~30) and looser gates let its slow drift into the heading.
+weighted by the camera gate (tracking decides whether the camera takes part, image quality how
+much: ``camera_gate.py``). A factor that disagrees with the radar step beyond
+``consistency_chi2`` (with its own covariance, before the gate's inflation) is not added: a bad
+camera must never make the fused estimate worse than radar alone. The default gate is strict
+(chi2 3 on 3 dof): measured on simulated office walks, the camera's reported covariances were
+about 10x too small (NEES ~30) and looser gates let its slow drift into the heading.
 """
 
 from __future__ import annotations
@@ -170,6 +171,8 @@ class CameraFactorMaker:
         metric, metric_cov = metric_relative_pose(step, covariance, estimate)
         delta, delta_cov = se2_conjugate(metric, metric_cov, self._mount)
         innovation = se2_between(radar_delta, delta)
+        # Checked with the camera's own covariance: a degraded camera is weighed less in the
+        # graph, but not let in with larger disagreements.
         chi2 = float(innovation @ np.linalg.solve(radar_covariance + delta_cov, innovation))
         if chi2 > self._consistency_chi2:
             self.outcomes["inconsistent"] += 1

@@ -1,10 +1,17 @@
 """The camera-linchpin fix: how much the graph may trust camera factors right now.
 
-The paper's system lost everything when smoke blinded its camera. Here camera health maps to a
-weight in [0, 1]: 1 keeps camera factors as reported, values in between inflate their
-covariance by ``1 / weight^2``, 0 drops them and the graph runs on radar alone. Dropping has
-hysteresis: the camera comes back only after several healthy frames, flagged ``reentered`` so
-the caller resets the camera's metric scale.
+The paper's system lost everything when smoke blinded its camera. Here the camera's health
+maps to a weight in [0, 1]; a factor's covariance is inflated by ``1 / weight^2`` (1: as
+reported, 0: not added). Two kinds of health enter, differently:
+
+- tracking (features followed into the frame, PnP inlier ratio) decides whether the camera
+  takes part at all. It drops out when tracking fails (weight under ``drop_below``) and comes
+  back only after several frames tracking well again, flagged ``reentered`` so the caller
+  resets the camera's metric scale;
+- image quality (salt-and-pepper fraction, contrast) only weighs it. A smoky camera that still
+  tracks keeps contributing, with less weight: it never vanishes at the first noise.
+
+The weight is the product of the two.
 """
 
 from __future__ import annotations
@@ -56,7 +63,7 @@ class GateDecision:
 
 
 class CameraGate:
-    """Camera factor weight from health, with hysteresis. One verb: ``update(health)``."""
+    """Camera factor weight from health, with hysteresis on tracking. One verb: ``update``."""
 
     def __init__(
         self,
@@ -68,10 +75,12 @@ class CameraGate:
         reenter_above: float,
         reenter_frames: int,
     ) -> None:
-        """Ramps per health signal; the weight is the smallest of the four. The camera is
-        dropped when the weight falls below ``drop_below`` and re-enters after
-        ``reenter_frames`` consecutive frames at or above ``reenter_above``."""
-        self._ramps = (noise_fraction, contrast, tracked, inlier_ratio)
+        """Ramps per health signal. The tracking weight (the smaller of ``tracked`` and
+        ``inlier_ratio``) drops the camera when it falls below ``drop_below``; it re-enters
+        after ``reenter_frames`` consecutive frames at or above ``reenter_above``. The quality
+        weight (the smaller of ``noise_fraction`` and ``contrast``) scales the weight."""
+        self._quality = (noise_fraction, contrast)
+        self._tracking = (tracked, inlier_ratio)
         self._drop_below = drop_below
         self._reenter_above = reenter_above
         self._reenter_frames = reenter_frames
@@ -83,21 +92,32 @@ class CameraGate:
         """Whether camera factors are currently dropped."""
         return self._dropped
 
+    def tracking_weight(self, health: CameraHealth) -> float:
+        """How well the frame was tracked: the worse of its two tracking ramps."""
+        return min(
+            self._tracking[0].weight(health.tracked), self._tracking[1].weight(health.inlier_ratio)
+        )
+
+    def quality_weight(self, health: CameraHealth) -> float:
+        """How clean the image is: the worse of its impulse-noise and contrast ramps."""
+        noise, contrast = self._quality
+        return min(noise.weight(health.noise_fraction), contrast.weight(health.contrast))
+
     def raw_weight(self, health: CameraHealth) -> float:
-        """The weight before hysteresis: the worst of the four health ramps."""
-        values = (health.noise_fraction, health.contrast, health.tracked, health.inlier_ratio)
-        return min(ramp.weight(v) for ramp, v in zip(self._ramps, values, strict=True))
+        """The weight before hysteresis: tracking times quality."""
+        return self.tracking_weight(health) * self.quality_weight(health)
 
     def update(self, health: CameraHealth) -> GateDecision:
         """Decide the weight of this frame's camera factor."""
-        weight = self.raw_weight(health)
+        tracking = self.tracking_weight(health)
+        weight = tracking * self.quality_weight(health)
         if not self._dropped:
-            if weight < self._drop_below:
+            if tracking < self._drop_below:
                 self._dropped = True
                 self._healthy_streak = 0
                 return GateDecision(0.0)
             return GateDecision(weight)
-        self._healthy_streak = self._healthy_streak + 1 if weight >= self._reenter_above else 0
+        self._healthy_streak = self._healthy_streak + 1 if tracking >= self._reenter_above else 0
         if self._healthy_streak < self._reenter_frames:
             return GateDecision(0.0)
         self._dropped = False

@@ -27,8 +27,10 @@ BLIND_SPAN = range(60, 100)
 def test_weight_ramps_between_good_and_bad():
     gate = get_camera_gate(CameraGateConfig())
     assert gate.update(HEALTHY).weight == 1.0
-    half_noise = CameraHealth(0.175, 0.2, 200, 0.9)  # halfway on the 0.05..0.30 ramp
+    half_noise = CameraHealth(0.375, 0.2, 200, 0.9)  # halfway on the 0.05..0.70 ramp
     assert gate.update(half_noise).weight == pytest.approx(0.5)
+    half_tracked = CameraHealth(0.375, 0.2, 47.5, 0.9)  # and halfway on the tracked ramp
+    assert gate.update(half_tracked).weight == pytest.approx(0.25)  # tracking x quality
     assert gate.raw_weight(BLIND) == 0.0
     assert HealthRamp(good=0.12, bad=0.03).weight(0.075) == pytest.approx(0.5)
     np.testing.assert_allclose(inflate_covariance(np.eye(3), 0.5), 4.0 * np.eye(3))
@@ -36,9 +38,22 @@ def test_weight_ramps_between_good_and_bad():
         inflate_covariance(np.eye(3), 0.0)
 
 
+def test_a_noisy_camera_that_tracks_is_weighed_never_dropped():
+    gate = get_camera_gate(CameraGateConfig())
+    smoky = CameraHealth(0.4, 0.2, 200, 0.9)  # salt-and-pepper 0.4, tracking well
+    weights = [gate.update(smoky).weight for _ in range(20)]
+    assert not gate.dropped and weights == pytest.approx([0.3 / 0.65] * 20)
+    # A camera starting in smoke (lost while it initializes) comes in once it tracks.
+    gate = get_camera_gate(CameraGateConfig(reenter_frames=3))
+    starting = CameraHealth(0.4, 0.2, 0, 0.0)
+    decisions = [gate.update(h) for h in [starting] * 3 + [smoky] * 4]
+    assert [d.weight > 0 for d in decisions] == [False] * 5 + [True] * 2
+    assert decisions[5].reentered
+
+
 def test_hysteresis_drops_then_needs_several_healthy_frames():
     gate = get_camera_gate(CameraGateConfig(reenter_frames=3))
-    flicker = CameraHealth(0.28, 0.2, 200, 0.9)  # weight 0.08, below drop_below 0.15
+    flicker = CameraHealth(0.0, 0.2, 20, 0.9)  # tracking weight 0.08, below drop_below 0.15
     assert gate.update(flicker).weight == 0.0
     assert gate.dropped
     decisions = [gate.update(h) for h in (HEALTHY, flicker, HEALTHY, HEALTHY, HEALTHY, HEALTHY)]

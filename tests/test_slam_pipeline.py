@@ -177,8 +177,16 @@ def test_camera_factor_becomes_metric_in_base_link_once_the_scale_is_known():
         assert factor.weight == 1.0 and np.all(np.linalg.eigvalsh(factor.covariance) > 0)
 
 
-def test_camera_factors_are_dropped_when_noisy_or_inconsistent_with_radar():
-    maker, outcomes = _camera_scene(noise=0.6)
+def test_a_noisy_camera_is_weighed_a_blinding_one_gated_an_inconsistent_one_refused():
+    _, clean = _camera_scene()
+    maker, noisy = _camera_scene(noise=0.6)  # salt and pepper 0.6, still tracking
+    weight = (0.6 - 0.7) / (0.05 - 0.7)  # the gate's default quality ramp
+    for (_, factor), (_, reference) in zip(noisy, clean, strict=True):
+        assert (factor is None) == (reference is None)
+        if factor is not None:
+            assert factor.weight == pytest.approx(weight)
+            np.testing.assert_allclose(factor.covariance, reference.covariance / weight**2)
+    maker, outcomes = _camera_scene(noise=0.75)  # nothing left of the image
     assert all(f is None for _, f in outcomes) and maker.outcomes["gated"] == len(outcomes)
     maker, outcomes = _camera_scene(yaw_jump_at_s=3.1)
     assert maker.outcomes["inconsistent"] == 1  # the pair over the 0.2 rad jump
