@@ -75,6 +75,8 @@ def run_benchmarks(
             results[f"{source}_odometry_fps"] = run.estimate.frames_per_s
     step("up-sampling a 512x512 map")
     results["upsample_512_s"] = upsample_seconds(run.out_dir / "maps/radar_sparse.yaml", config)
+    step("parsing TI mmWave UART frames")
+    results["ti_parse_frames_per_s"] = ti_parse_frames_per_s()
     results["peak_rss_mb"] = peak_rss_mb()
     return results
 
@@ -99,3 +101,23 @@ def upsample_seconds(map_yaml: Path, config: SmokySlamConfig, side: int = 512) -
         upsample(upsampler, cells, spec)
         times.append(time.perf_counter() - started)
     return min(times)
+
+
+def ti_parse_frames_per_s(frames: int = 5000, points: int = 40) -> float:
+    """Frames per second the TI UART parser decodes (``points`` detections each, fed in 4 kB
+    reads as from a serial port), best of three."""
+    from smokyslam.frontends.sensors.ti_encode import encode_sdk1_frame
+    from smokyslam.frontends.sensors.ti_frames import TiFrameParser
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform([-3, 0.5, -0.5], [3, 8, 0.5], (points, 3))
+    doppler, peak = rng.integers(-8, 8, points), rng.integers(100, 5000, points)
+    stream = b"".join(encode_sdk1_frame(i, xyz, doppler, peak) for i in range(frames))
+    best = np.inf
+    for _ in range(3):
+        parser = TiFrameParser(0.1)
+        started = time.perf_counter()
+        for offset in range(0, len(stream), 4096):
+            parser.feed(stream[offset : offset + 4096])
+        best = min(best, time.perf_counter() - started)
+    return frames / best

@@ -30,6 +30,7 @@ app = typer.Typer(
 COMMANDS = {
     "simulate": log_commands.simulate,
     "info": log_commands.info,
+    "import-ti": log_commands.import_ti,
     "run": run_commands.run,
     "compare": run_commands.compare,
     "sweep": run_commands.sweep,

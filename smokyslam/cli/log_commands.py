@@ -161,3 +161,35 @@ def evaluate(
             typer.echo(f"{key:20s} {value:.4f}")
     target.write_text(json.dumps(metrics, indent=2) + "\n")
     typer.echo(f"wrote {target}")
+
+
+def import_ti(
+    capture: Annotated[
+        Path, typer.Argument(help="A raw UART capture of a TI mmWave radar (e.g. a .dat).")
+    ],
+    radar_cfg: Annotated[
+        Path, typer.Option("--radar-cfg", help="The .cfg the radar ran with (resolutions).")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Log to write: .mcap or .bag.")],
+    sdk: Annotated[
+        int | None,
+        typer.Option(help="Force the frame format: 1 (SDK 1.x/2.x xWR14xx) or 3 (SDK 3.x)."),
+    ] = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Convert a raw TI mmWave UART capture into a log (one radar scan per valid frame)."""
+    cfg = effective_config(config)
+    if sdk is not None and sdk not in (1, 3):
+        raise ConfigError(f"--sdk must be 1 or 3, got {sdk}")
+    writable_file(out, "--out")
+    from smokyslam.pipelines.import_ti import import_ti as run_import
+
+    result = run_import(capture, radar_cfg, out, cfg, overwrite=overwrite, sdk=sdk)
+    stats = result.stats
+    reasons = ", ".join(f"{k} {v}" for k, v in stats.reasons.items())
+    typer.echo(
+        f"wrote {result.log_path}: {result.scans} scans over {result.duration_s:.1f} s; "
+        f"{stats.dropped} frames dropped{f' ({reasons})' if reasons else ''}, "
+        f"{stats.bytes_skipped} bytes skipped"
+    )

@@ -1,0 +1,1 @@
+"""Real sensors: the TI mmWave radar's UART frames and its ``.cfg`` files."""
