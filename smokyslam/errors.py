@@ -76,3 +76,7 @@ class FusionError(SmokySlamError):
 
 class ViewerError(SmokySlamError):
     """A recording cannot be shown: no display, or no recording where one was named."""
+
+
+class SensorError(SmokySlamError):
+    """A sensor cannot be opened, refuses its configuration, or went away."""

@@ -31,6 +31,7 @@ COMMANDS = {
     "simulate": log_commands.simulate,
     "info": log_commands.info,
     "import-ti": log_commands.import_ti,
+    "record": log_commands.record,
     "run": run_commands.run,
     "compare": run_commands.compare,
     "sweep": run_commands.sweep,

@@ -193,3 +193,50 @@ def import_ti(
         f"{stats.dropped} frames dropped{f' ({reasons})' if reasons else ''}, "
         f"{stats.bytes_skipped} bytes skipped"
     )
+
+
+def record(
+    radar_cli: Annotated[str, typer.Option("--radar-cli", help="The radar's CLI port or URL.")],
+    radar_data: Annotated[str, typer.Option("--radar-data", help="Its data port or URL.")],
+    radar_cfg: Annotated[Path, typer.Option("--radar-cfg", help="The .cfg to configure it.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Log to write: .mcap or .bag.")],
+    duration: Annotated[
+        float | None, typer.Option(min=0.0, help="Seconds to record (default: until Ctrl-C).")
+    ] = None,
+    camera: Annotated[
+        str | None,
+        typer.Option(help="Also a camera: an OpenCV device index, a stream URL or a video."),
+    ] = None,
+    camera_cfg: Annotated[
+        Path | None,
+        typer.Option("--camera-cfg", help="Its intrinsics (e.g. configs/cameras/webcam.yaml)."),
+    ] = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Record a live TI mmWave radar (and a camera) into a log (host timestamps); Ctrl-C or
+    a disconnect closes the log with everything recorded so far."""
+    cfg = effective_config(config)
+    writable_file(out, "--out")
+    from smokyslam.pipelines.record import record as run_record
+    from smokyslam.progress import console
+
+    result = run_record(
+        radar_cli,
+        radar_data,
+        radar_cfg,
+        out,
+        cfg,
+        duration,
+        on_status=lambda text: console.print(text, markup=False, highlight=False),
+        overwrite=overwrite,
+        camera=camera,
+        camera_cfg=camera_cfg,
+    )
+    stats = result.stats
+    typer.echo(
+        f"wrote {result.log_path}: {result.scans} scans and {result.images} images over "
+        f"{result.duration_s:.1f} s "
+        f"(ended: {result.ended_by}); {stats.dropped} frames dropped, "
+        f"{stats.bytes_skipped} bytes skipped"
+    )

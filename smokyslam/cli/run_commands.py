@@ -23,11 +23,15 @@ from smokyslam.cli.options import (
     smoke_overrides,
     summary_line,
 )
+from smokyslam.errors import ConfigError
 
 
 def run(
-    log: Annotated[Path, typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz) log.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    log: Annotated[
+        Path | None,
+        typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz) log (none with --live)."),
+    ] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Output folder.")] = None,
     odometry: Annotated[
         str, typer.Option(help="Odometry source: fused, radar, camera or dead-reckoning.")
     ] = "fused",
@@ -38,32 +42,73 @@ def run(
     rerun: RerunOption = None,
     rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
+    live: Annotated[
+        bool, typer.Option("--live", help="Run on a live TI radar instead of a log.")
+    ] = False,
+    radar_cli: Annotated[
+        str | None, typer.Option("--radar-cli", help="Live: the radar's CLI port or URL.")
+    ] = None,
+    radar_data: Annotated[
+        str | None, typer.Option("--radar-data", help="Live: its data port or URL.")
+    ] = None,
+    radar_cfg: Annotated[
+        Path | None, typer.Option("--radar-cfg", help="Live: the .cfg to configure it.")
+    ] = None,
+    duration: Annotated[
+        float | None, typer.Option(min=0.0, help="Live: seconds to run (default: until Ctrl-C).")
+    ] = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
-    """Run SLAM/odometry on a log: trajectory (TUM, KITTI), maps, metrics and config."""
+    """Run SLAM/odometry on a log, or live on a TI radar: trajectory (TUM, KITTI), maps,
+    metrics and config."""
     cfg = effective_config(
         config, smoke_overrides(smoke, radar_loss, camera_noise, haze), calibration
     )
+    if out is None:
+        raise ConfigError("--out is required")
+    if live == (log is not None):
+        raise ConfigError("give a LOG, or --live with --radar-cli, --radar-data and --radar-cfg")
+    if live and None in (radar_cli, radar_data, radar_cfg):
+        raise ConfigError("--live needs --radar-cli, --radar-data and --radar-cfg")
     check_rerun(rerun, rerun_spawn)
-    from smokyslam.frontends.readers.registry import open_log
-    from smokyslam.pipelines.run import run_log
     from smokyslam.pipelines.sources import get_source
     from smokyslam.progress import progress_bar
 
     get_source(odometry)
-    duration_s = open_log(log, cfg).summary().duration_s
-    with progress_bar(f"{odometry} on {log.name}", duration_s) as update:
-        result = run_log(
-            log,
-            odometry,
-            cfg,
-            out,
-            on_progress=lambda t, s: update(t, status=s),
-            rerun_path=rerun,
-            overwrite=overwrite,
-            rerun_spawn=rerun_spawn,
-        )
+    if live:
+        from smokyslam.pipelines.live import run_live
+
+        with progress_bar(f"{odometry} live", duration or 0.0) as update:
+            result = run_live(
+                radar_cli,
+                radar_data,
+                radar_cfg,
+                odometry,
+                cfg,
+                out,
+                duration,
+                on_progress=lambda t, s: update(t, status=s),
+                rerun_path=rerun,
+                rerun_spawn=rerun_spawn,
+                overwrite=overwrite,
+            )
+    else:
+        from smokyslam.frontends.readers.registry import open_log
+        from smokyslam.pipelines.run import run_log
+
+        duration_s = open_log(log, cfg).summary().duration_s
+        with progress_bar(f"{odometry} on {log.name}", duration_s) as update:
+            result = run_log(
+                log,
+                odometry,
+                cfg,
+                out,
+                on_progress=lambda t, s: update(t, status=s),
+                rerun_path=rerun,
+                overwrite=overwrite,
+                rerun_spawn=rerun_spawn,
+            )
     typer.echo(summary_line(result.metrics))
     typer.echo(f"wrote {result.out_dir}/")
     if rerun is not None:

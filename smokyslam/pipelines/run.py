@@ -30,7 +30,7 @@ from smokyslam.viz.recorder import NullRecorder, Recorder, RecordingSetup, open_
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["SOURCES", "RunResult", "evaluate_source", "run_log", "run_source"]
+__all__ = ["SOURCES", "RunResult", "evaluate_source", "run_log", "run_reader", "run_source"]
 
 ProgressCallback = Callable[[float, str], None]
 
@@ -116,10 +116,35 @@ def run_log(
     """
     spec = get_source(source)
     config = config_for_log(log_path, config)
+    return run_reader(
+        lambda: open_log(log_path, config, require=spec.requires),
+        source,
+        config,
+        out_dir,
+        on_progress,
+        rerun_path,
+        overwrite,
+        rerun_spawn,
+    )
+
+
+def run_reader(
+    open_reader: Callable[[], LogReader],
+    source: str,
+    config: SmokySlamConfig,
+    out_dir: Path | str,
+    on_progress: ProgressCallback | None = None,
+    rerun_path: Path | str | None = None,
+    overwrite: bool = False,
+    rerun_spawn: bool = False,
+) -> RunResult:
+    """:func:`run_log` over the reader ``open_reader()`` returns (a log, or live sensors),
+    opened once the output folder is claimed."""
+    spec = get_source(source)
     started = time.perf_counter()
     with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
-        reader = open_log(log_path, config, require=spec.requires)
+        reader = open_reader()
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         recorder = open_recorder(rerun_path, config.recording, rerun_spawn)
         recorder.start(_recording_setup(reader, source, truth, gt_map))
@@ -145,7 +170,7 @@ def run_log(
                 "realtime_factor": duration_s / wall_s if wall_s > 0 else None,
             }
         )
-    logger.info("%s run on %s: %.1f s of log in %.1f s", source, log_path, duration_s, wall_s)
+    logger.info("%s run on %s: %.1f s of log in %.1f s", source, reader.path, duration_s, wall_s)
     if estimate.interrupted:
         raise RunInterruptedError(out.root)
     return RunResult(source, out.root, metrics, estimate)
