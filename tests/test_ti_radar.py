@@ -190,3 +190,36 @@ def test_record_takes_a_camera_too(tmp_path):
             camera_cfg=camera_cfg,
         )
     assert not (tmp_path / "no.mcap").exists()
+
+
+def test_a_live_fused_run_takes_the_camera(tmp_path):
+    import cv2
+
+    from smokyslam.frontends.readers.registry import open_log
+    from smokyslam.pipelines.live import run_live
+    from smokyslam.types import CameraFrame
+
+    video = tmp_path / "camera.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 15, (64, 48))
+    for i in range(15):
+        writer.write(np.full((48, 64, 3), 10 * i, np.uint8))
+    writer.release()
+    camera_cfg = tmp_path / "camera.yaml"
+    camera_cfg.write_text("width: 64\nheight: 48\nfx: 50\nfy: 50\ncx: 31.5\ncy: 23.5\n")
+    frames = [sdk1_frame(i, *scene_points(i, np.random.default_rng(i))) for i in range(20)]
+    fake = FakeRadar(frames)
+    out = tmp_path / "live"
+    result = run_live(
+        fake.cli_path,
+        fake.data_path,
+        CFG,
+        "fused",
+        load_config(),
+        out,
+        camera=str(video),
+        camera_cfg=camera_cfg,
+    )
+    assert len(np.loadtxt(out / "trajectory.tum")) == 20
+    assert "reinitializations" in result.metrics["odometry"]  # the camera stage ran
+    recorded = list(open_log(out / "live.mcap", load_config()).frames())
+    assert sum(isinstance(f, CameraFrame) for f in recorded) == 15

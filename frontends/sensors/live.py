@@ -1,9 +1,11 @@
 """Live sensors as a :class:`~smokyslam.frontends.readers.base.LogReader`: ``run --live``.
 
-The run loop reads a live TI radar exactly as it reads a log. Each frame becomes a radar scan
-stamped with the host's clock on arrival, and is written to the recording (``record_path``) as
-it goes. The stream ends at ``duration_s``, when the sensor goes away, or at Ctrl-C. Either
-way the recording is closed properly and keeps everything received. There is no ground truth.
+The run loop reads a live TI radar (and a camera) exactly as it reads a log. Each frame
+becomes a radar scan stamped with the host's clock on arrival, and the camera's images
+(grabbed on a thread, host-stamped) come before the scan they preceded. Everything is written
+to the recording (``record_path``) as it goes. The stream ends at ``duration_s``, when the
+radar goes away, or at Ctrl-C. Either way the recording is closed properly and keeps
+everything received. There is no ground truth.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.readers.base import LogSummary, StreamSummary
+from smokyslam.frontends.sensors.camera import CameraGrabber
 from smokyslam.frontends.sensors.ti_config import TiRadarConfig
 from smokyslam.frontends.sensors.ti_frames import TiFrameParser
 from smokyslam.frontends.sensors.ti_radar import TiRadar
@@ -41,8 +44,11 @@ class LiveTiReader:
         config: SmokySlamConfig,
         record_path: Path,
         duration_s: float | None = None,
+        camera: tuple[str, CameraIntrinsics] | None = None,
     ) -> None:
+        """``camera``: (OpenCV source, its intrinsics), or None for radar only."""
         self.path = Path(record_path)
+        self._camera = camera
         self._radar = radar
         self._config = config
         self._duration_s = duration_s
@@ -57,9 +63,18 @@ class LiveTiReader:
         writer.write_tf_static(self.extrinsics(), 0.0)
         started = time.monotonic()
         self._started_epoch_s = time.time()
+        wants_images = streams is None or "camera_image" in streams
+        grabber = None
         try:
+            if self._camera is not None:
+                source, intrinsics = self._camera
+                grabber = CameraGrabber(source, intrinsics, lambda: time.monotonic() - started)
             for frame in self._radar.frames(self._parser):
                 stamp_s = time.monotonic() - started
+                for image in grabber.ready() if grabber is not None else ():
+                    writer.write_camera(image, depth_scale=1)
+                    if wants_images:
+                        yield image
                 scan = RadarScan(stamp_s, frame.points_xyz_m, frame.intensity, frame.velocity_mps)
                 writer.write_radar(scan)
                 self._scans, self._last_stamp_s = self._scans + 1, stamp_s
@@ -67,6 +82,8 @@ class LiveTiReader:
                 if self._duration_s is not None and stamp_s >= self._duration_s:
                     self._radar.stop()
         finally:  # Ctrl-C, a disconnect or the end: the recording keeps what it received
+            for image in grabber.close() if grabber is not None else ():
+                writer.write_camera(image, depth_scale=1)
             writer.close()
             self._radar.close()
 
@@ -92,7 +109,7 @@ class LiveTiReader:
         return rig_extrinsics(self._config.rig)
 
     def camera_intrinsics(self) -> CameraIntrinsics | None:
-        return None
+        return self._camera[1] if self._camera is not None else None
 
     def problems(self) -> dict[str, object]:
         stats = self._parser.stats

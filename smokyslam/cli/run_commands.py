@@ -57,6 +57,12 @@ def run(
     duration: Annotated[
         float | None, typer.Option(min=0.0, help="Live: seconds to run (default: until Ctrl-C).")
     ] = None,
+    camera: Annotated[
+        str | None, typer.Option(help="Live: a camera (OpenCV device index, URL or video).")
+    ] = None,
+    camera_cfg: Annotated[
+        Path | None, typer.Option("--camera-cfg", help="Live: the camera's intrinsics YAML.")
+    ] = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
@@ -92,6 +98,8 @@ def run(
                 rerun_path=rerun,
                 rerun_spawn=rerun_spawn,
                 overwrite=overwrite,
+                camera=camera,
+                camera_cfg=camera_cfg,
             )
     else:
         from smokyslam.frontends.readers.registry import open_log
