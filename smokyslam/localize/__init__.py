@@ -1,0 +1,1 @@
+"""Localization in a saved map: Monte Carlo localization with a likelihood field."""
