@@ -82,3 +82,9 @@ def test_a_map_without_an_occupied_cell_is_refused():
     cells = np.full((20, 20), FREE, dtype=np.int8)
     with pytest.raises(MapError, match="no occupied cell"):
         LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
+
+
+def test_the_bench_runs_the_filter_at_its_particle_count():
+    from smokyslam.benchmarks.suite import localize_realtime_factor
+
+    assert localize_realtime_factor(frames=3, particles=300) > 0.0

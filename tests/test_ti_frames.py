@@ -171,3 +171,9 @@ def test_the_package_encoder_round_trips_through_the_parser():
     np.testing.assert_array_equal(frame.points_xyz_m, reference.points_xyz_m)
     np.testing.assert_array_equal(frame.velocity_mps, reference.velocity_mps)
     np.testing.assert_array_equal(frame.intensity, reference.intensity)
+
+
+def test_the_bench_parses_what_it_encodes():
+    from smokyslam.benchmarks.suite import ti_parse_frames_per_s
+
+    assert ti_parse_frames_per_s(frames=20, points=5) > 0.0

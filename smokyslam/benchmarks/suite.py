@@ -77,6 +77,8 @@ def run_benchmarks(
     results["upsample_512_s"] = upsample_seconds(run.out_dir / "maps/radar_sparse.yaml", config)
     step("parsing TI mmWave UART frames")
     results["ti_parse_frames_per_s"] = ti_parse_frames_per_s()
+    step("localizing with 2000 particles")
+    results["localize_realtime_factor"] = localize_realtime_factor()
     results["peak_rss_mb"] = peak_rss_mb()
     return results
 
@@ -121,3 +123,28 @@ def ti_parse_frames_per_s(frames: int = 5000, points: int = 40) -> float:
             parser.feed(stream[offset : offset + 4096])
         best = min(best, time.perf_counter() - started)
     return frames / best
+
+
+def localize_realtime_factor(
+    frames: int = 100, particles: int = 2000, rate_hz: float = 10.0
+) -> float:
+    """Real-time factor of the localizer's filter (predict + update + resample) with a fixed
+    ``particles`` count and 40 radar points a frame, on a 20 x 20 m map, at ``rate_hz``."""
+    from smokyslam.geometry import GridSpec
+    from smokyslam.localize.likelihood import LikelihoodField
+    from smokyslam.localize.mcl import MclSettings, MonteCarloLocalizer
+
+    cells = np.zeros((200, 200), dtype=np.int8)
+    cells[[0, -1], :] = cells[:, [0, -1]] = cells[100, 50:150] = 100
+    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
+    settings = MclSettings(min_particles=particles, max_particles=particles)
+    mcl = MonteCarloLocalizer(field, settings, seed=0)
+    mcl.start_tracking(np.array([5.0, 5.0, 0.0]), np.array([0.5, 0.5, 0.2]))
+    rng = np.random.default_rng(0)
+    points = rng.uniform([-4.0, -4.0], [4.0, 4.0], (40, 2))
+    step, cov = np.array([0.1, 0.0, 0.01]), np.diag([0.02, 0.02, 0.01]) ** 2
+    started = time.perf_counter()
+    for _ in range(frames):
+        mcl.predict(step, cov)
+        mcl.update(points)
+    return frames / rate_hz / (time.perf_counter() - started)
