@@ -20,7 +20,7 @@ from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.readers.base import LogSummary, StreamSummary
 from smokyslam.frontends.sensors.camera import CameraGrabber
 from smokyslam.frontends.sensors.ti_config import TiRadarConfig
-from smokyslam.frontends.sensors.ti_frames import TiFrameParser
+from smokyslam.frontends.sensors.ti_frames import ParseStats, TiFrameParser
 from smokyslam.frontends.sensors.ti_radar import TiRadar
 from smokyslam.rig import rig_extrinsics
 from smokyslam.sim.recorder import LogWriter
@@ -30,7 +30,6 @@ from smokyslam.types import (
     Frame,
     GroundTruthMap,
     GroundTruthTrajectory,
-    RadarScan,
 )
 
 
@@ -45,52 +44,73 @@ class LiveTiReader:
         record_path: Path,
         duration_s: float | None = None,
         camera: tuple[str, CameraIntrinsics] | None = None,
+        overwrite: bool = True,
     ) -> None:
-        """``camera``: (OpenCV source, its intrinsics), or None for radar only."""
+        """``camera``: (OpenCV source, its intrinsics), or None for radar only.
+        ``overwrite``: replace a recording already at ``record_path``."""
         self.path = Path(record_path)
         self._camera = camera
         self._radar = radar
         self._config = config
         self._duration_s = duration_s
+        self._overwrite = overwrite
         self._parser = TiFrameParser(radar_config.doppler_resolution_mps)
         self._started_epoch_s = time.time()
-        self._scans = 0
-        self._last_stamp_s = 0.0
+        self.scans = 0
+        self.images = 0
+        self.elapsed_s = 0.0
+        """Radar scans and camera images recorded so far, and the time of the latest scan."""
+        self.ended_by = "disconnected"
+        """``duration``, or ``disconnected`` (the radar went away)."""
+
+    @property
+    def stats(self) -> ParseStats:
+        """What the frame parser has seen (frames, drops, bytes skipped)."""
+        return self._parser.stats
 
     def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
-        writer = LogWriter(self.path, self._config.topics, overwrite=True)
-        writer.__enter__()
-        writer.write_tf_static(self.extrinsics(), 0.0)
+        wants_images = streams is None or "camera_image" in streams
         started = time.monotonic()
         self._started_epoch_s = time.time()
-        wants_images = streams is None or "camera_image" in streams
         grabber = None
         try:
-            if self._camera is not None:
+            if self._camera is not None:  # a refused camera stops before anything is recorded
                 source, intrinsics = self._camera
                 grabber = CameraGrabber(source, intrinsics, lambda: time.monotonic() - started)
+            writer = LogWriter(self.path, self._config.topics, overwrite=self._overwrite)
+            writer.__enter__()
+        except BaseException:
+            self._radar.close()
+            if grabber is not None:
+                grabber.close()
+            raise
+        writer.write_tf_static(self.extrinsics(), 0.0)
+        try:
             for frame in self._radar.frames(self._parser):
                 stamp_s = time.monotonic() - started
                 for image in grabber.ready() if grabber is not None else ():
                     writer.write_camera(image, depth_scale=1)
+                    self.images += 1
                     if wants_images:
                         yield image
-                scan = RadarScan(stamp_s, frame.points_xyz_m, frame.intensity, frame.velocity_mps)
+                scan = frame.scan(stamp_s)
                 writer.write_radar(scan)
-                self._scans, self._last_stamp_s = self._scans + 1, stamp_s
+                self.scans, self.elapsed_s = self.scans + 1, stamp_s
                 yield scan
                 if self._duration_s is not None and stamp_s >= self._duration_s:
+                    self.ended_by = "duration"
                     self._radar.stop()
         finally:  # Ctrl-C, a disconnect or the end: the recording keeps what it received
             for image in grabber.close() if grabber is not None else ():
                 writer.write_camera(image, depth_scale=1)
+                self.images += 1
             writer.close()
             self._radar.close()
 
     def summary(self) -> LogSummary:
-        rate = self._scans / self._last_stamp_s if self._last_stamp_s > 0 else 0.0
-        streams = [StreamSummary("radar (live)", "TI mmWave UART", self._scans, rate)]
-        return LogSummary(self.path, "live", self._last_stamp_s, self._started_epoch_s, streams)
+        rate = self.scans / self.elapsed_s if self.elapsed_s > 0 else 0.0
+        streams = [StreamSummary("radar (live)", "TI mmWave UART", self.scans, rate)]
+        return LogSummary(self.path, "live", self.elapsed_s, self._started_epoch_s, streams)
 
     def log_time_s(self, stamps_s: np.ndarray) -> np.ndarray:
         """Host clock: seconds since the epoch."""
@@ -112,7 +132,7 @@ class LiveTiReader:
         return self._camera[1] if self._camera is not None else None
 
     def problems(self) -> dict[str, object]:
-        stats = self._parser.stats
+        stats = self.stats
         if not (stats.dropped or stats.bytes_skipped):
             return {}
         return {"dropped_frames": stats.dropped, "bytes_skipped": stats.bytes_skipped}

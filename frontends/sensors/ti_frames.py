@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from smokyslam.types import RadarScan
+
 MAGIC = bytes([2, 1, 4, 3, 6, 5, 8, 7])
 HEADER_SDK1 = struct.Struct("<8s7I")
 HEADER_SDK3 = struct.Struct("<8s8I")
@@ -54,6 +56,10 @@ class TiFrame:
     points_xyz_m: np.ndarray
     velocity_mps: np.ndarray
     intensity: np.ndarray
+
+    def scan(self, stamp_s: float) -> RadarScan:
+        """The frame as the radar scan every stage reads, stamped ``stamp_s``."""
+        return RadarScan(stamp_s, self.points_xyz_m, self.intensity, self.velocity_mps)
 
 
 @dataclass

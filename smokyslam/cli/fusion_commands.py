@@ -13,6 +13,7 @@ from smokyslam.cli.options import (
     RerunOption,
     RerunSpawnOption,
     check_rerun,
+    echo_recording,
 )
 from smokyslam.config import load_config
 from smokyslam.outputs import writable_folder
@@ -140,5 +141,4 @@ def paper_table(
         )
     typer.echo((result.out_dir / "table.md").read_text(), nl=False)
     typer.echo(f"wrote {result.out_dir}/table.csv ({result.wall_s:.1f} s)")
-    if rerun is not None:
-        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
+    echo_recording(rerun)

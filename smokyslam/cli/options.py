@@ -71,6 +71,12 @@ def check_rerun(rerun: Path | None, spawn: bool) -> None:
         require_display("--rerun-spawn")
 
 
+def echo_recording(rerun: Path | None) -> None:
+    """The closing line of a command that wrote a recording: where, and how to open it."""
+    if rerun is not None:
+        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
+
+
 def smoke_overrides(
     smoke: str | None,
     radar_loss: float | None = None,

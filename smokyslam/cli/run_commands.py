@@ -19,6 +19,7 @@ from smokyslam.cli.options import (
     RerunSpawnOption,
     SmokeOption,
     check_rerun,
+    echo_recording,
     effective_config,
     smoke_overrides,
     summary_line,
@@ -119,8 +120,7 @@ def run(
             )
     typer.echo(summary_line(result.metrics))
     typer.echo(f"wrote {result.out_dir}/")
-    if rerun is not None:
-        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
+    echo_recording(rerun)
 
 
 def compare(
@@ -171,8 +171,7 @@ def compare(
         )
     typer.echo(result.markdown_path.read_text(), nl=False)
     typer.echo(f"wrote {result.out_dir}/ ({total} runs in {result.wall_s:.1f} s)")
-    if rerun is not None:
-        typer.echo(f"recording: {rerun} (open it with `smokyslam view {rerun}`)")
+    echo_recording(rerun)
     if result.failed:
         typer.echo(f"error: {len(result.failed)} of {total} runs failed", err=True)
         raise typer.Exit(1)

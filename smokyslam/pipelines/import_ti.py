@@ -17,10 +17,9 @@ from pathlib import Path
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import LogError
 from smokyslam.frontends.sensors.ti_config import load_ti_config
-from smokyslam.frontends.sensors.ti_frames import ParseStats, TiFrame, TiFrameParser
+from smokyslam.frontends.sensors.ti_frames import ParseStats, TiFrameParser
 from smokyslam.rig import rig_extrinsics
 from smokyslam.sim.recorder import LogWriter
-from smokyslam.types import RadarScan
 
 logger = logging.getLogger(__name__)
 
@@ -56,11 +55,6 @@ class ScanClock:
         return stamp
 
 
-def scan_of(frame: TiFrame, stamp_s: float) -> RadarScan:
-    """A decoded frame as the radar scan every stage reads."""
-    return RadarScan(stamp_s, frame.points_xyz_m, frame.intensity, frame.velocity_mps)
-
-
 def import_ti(
     capture: Path | str,
     radar_cfg: Path | str,
@@ -84,7 +78,7 @@ def import_ti(
             while chunk := stream.read(CHUNK_BYTES):
                 for frame in parser.feed(chunk):
                     last_stamp = clock.stamp_s(frame.frame_number)
-                    writer.write_radar(scan_of(frame, last_stamp))
+                    writer.write_radar(frame.scan(last_stamp))
                     scans += 1
         parser.finish()
         if scans == 0:

@@ -10,20 +10,17 @@ properly and holds everything recorded so far.
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import ConfigError
-from smokyslam.frontends.sensors.camera import CameraGrabber, load_camera_intrinsics
+from smokyslam.frontends.sensors.camera import load_camera_intrinsics
+from smokyslam.frontends.sensors.live import LiveTiReader
 from smokyslam.frontends.sensors.ti_config import load_ti_config
-from smokyslam.frontends.sensors.ti_frames import ParseStats, TiFrameParser
+from smokyslam.frontends.sensors.ti_frames import ParseStats
 from smokyslam.frontends.sensors.ti_radar import TiRadar
-from smokyslam.pipelines.import_ti import scan_of
-from smokyslam.rig import rig_extrinsics
-from smokyslam.sim.recorder import LogWriter
 
 logger = logging.getLogger(__name__)
 
@@ -54,56 +51,50 @@ def record(
     camera_cfg: Path | str | None = None,
 ) -> RecordResult:
     """Record the radar (and ``camera``, a device index, URL or video file, with the
-    intrinsics of ``camera_cfg``) into ``out_log`` (see the module docstring)."""
+    intrinsics of ``camera_cfg``) into ``out_log`` (see the module docstring): the live
+    reader of ``run --live``, read to the end."""
     radar_config = load_ti_config(radar_cfg)
-    intrinsics = None
+    live_camera = None
     if camera is not None:
         if camera_cfg is None:
             raise ConfigError("--camera needs --camera-cfg (its intrinsics)")
-        intrinsics = load_camera_intrinsics(camera_cfg)
+        live_camera = (camera, load_camera_intrinsics(camera_cfg))
     radar = TiRadar(cli_port, data_port)
-    grabber = None
-    parser = TiFrameParser(radar_config.doppler_resolution_mps)
-    scans, stamp_s, ended_by = 0, 0.0, "disconnected"
     try:
         radar.configure(radar_config)
-        with LogWriter(out_log, config.topics, overwrite=overwrite) as writer:
-            writer.write_tf_static(rig_extrinsics(config.rig), 0.0)
-            started = time.monotonic()
-            last_status = 0.0
-            if camera is not None:
-                grabber = CameraGrabber(camera, intrinsics, lambda: time.monotonic() - started)
-            try:
-                for frame in radar.frames(parser):
-                    stamp_s = time.monotonic() - started
-                    writer.write_radar(scan_of(frame, stamp_s))
-                    scans += 1
-                    for image in grabber.ready() if grabber is not None else ():
-                        writer.write_camera(image, depth_scale=1)
-                    if on_status is not None and stamp_s - last_status >= STATUS_PERIOD_S:
-                        last_status = stamp_s
-                        on_status(_status(scans, stamp_s, parser.stats, grabber))
-                    if duration_s is not None and stamp_s >= duration_s:
-                        ended_by = "duration"
-                        radar.stop()
-            except KeyboardInterrupt:
-                ended_by = "interrupted"  # the log is closed below with what it holds
-            finally:
-                for image in grabber.close() if grabber is not None else ():
-                    writer.write_camera(image, depth_scale=1)
-    finally:
+    except BaseException:
         radar.close()
-    images = grabber.frames if grabber is not None else 0
-    logger.info("recorded %d scans, %d images in %.1f s (%s)", scans, images, stamp_s, ended_by)
-    return RecordResult(Path(out_log), scans, stamp_s, parser.stats, ended_by, images)
-
-
-def _status(scans: int, elapsed_s: float, stats: ParseStats, grabber) -> str:
-    rate = scans / elapsed_s if elapsed_s > 0 else 0.0
-    text = (
-        f"radar {scans} frames ({rate:.1f} Hz), {stats.dropped} dropped, "
-        f"{stats.bytes_skipped} bytes skipped"
+        raise
+    reader = LiveTiReader(
+        radar, radar_config, config, Path(out_log), duration_s, live_camera, overwrite
     )
-    if grabber is not None:
-        text += f"; camera {grabber.frames} images ({grabber.frames / max(elapsed_s, 1e-9):.1f} Hz)"
+    ended_by, last_status = None, 0.0
+    try:
+        for _ in reader.frames():
+            if on_status is not None and reader.elapsed_s - last_status >= STATUS_PERIOD_S:
+                last_status = reader.elapsed_s
+                on_status(_status(reader))
+    except KeyboardInterrupt:
+        ended_by = "interrupted"  # the reader has closed the log with what it holds
+    ended_by = ended_by or reader.ended_by
+    logger.info(
+        "recorded %d scans, %d images in %.1f s (%s)",
+        reader.scans,
+        reader.images,
+        reader.elapsed_s,
+        ended_by,
+    )
+    return RecordResult(
+        Path(out_log), reader.scans, reader.elapsed_s, reader.stats, ended_by, reader.images
+    )
+
+
+def _status(reader: LiveTiReader) -> str:
+    elapsed_s, stats = max(reader.elapsed_s, 1e-9), reader.stats
+    text = (
+        f"radar {reader.scans} frames ({reader.scans / elapsed_s:.1f} Hz), {stats.dropped} "
+        f"dropped, {stats.bytes_skipped} bytes skipped"
+    )
+    if reader.images:
+        text += f"; camera {reader.images} images ({reader.images / elapsed_s:.1f} Hz)"
     return text

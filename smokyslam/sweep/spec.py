@@ -26,7 +26,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from smokyslam.config import SmokySlamConfig, config_to_yaml, deep_update, load_config
+from smokyslam.config import SmokySlamConfig, deep_update, load_config
 from smokyslam.errors import ConfigError, SmokySlamError
 from smokyslam.smoke import SmokeLevel, parse_smoke
 
@@ -141,10 +141,10 @@ def load_sweep(path: Path | str, base: SmokySlamConfig) -> Sweep:
     if len(set(names)) != len(names):
         raise ConfigError(f"{path}: a world is listed twice ({_first_repeat(names)})")
     configs = {}
+    base_data = base.model_dump(mode="json")
     for name, override in spec.configs.items():
         if _safe(name) != name:
             raise ConfigError(f"{path}: config name '{name}': use letters, digits, - and _")
-        base_data = yaml.safe_load(config_to_yaml(base))
         try:
             configs[name] = load_config(overrides=deep_update(base_data, override))
         except ConfigError as exc:
