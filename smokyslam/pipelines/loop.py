@@ -112,8 +112,6 @@ class RunLoop:
         self._order = InOrder()
         self._clock = StageClock()
         self._camera_restarts = 0
-        self._frames = 0
-        self._last_stamp_s: float | None = None
         self._health = RunHealth()
 
     def run(self, frames: Iterable[Frame]) -> RunEstimate:
@@ -127,8 +125,8 @@ class RunLoop:
                     self._read(frame)
                     self._hand_over(keep=MAX_LAG)
                 self._finish()
-                if self._last_stamp_s is not None:  # the final graph and maps, when recorded
-                    self._snapshot(self._last_stamp_s, self.stages.recorder.due(float("inf")))
+                if stamps := self._health.stamps_s:  # the final graph and maps, when recorded
+                    self._snapshot(stamps[-1], self.stages.recorder.due(float("inf")))
             except KeyboardInterrupt:
                 interrupted = True
                 logger.info("interrupted: keeping what was processed so far")
@@ -231,12 +229,11 @@ class RunLoop:
     def _processed(self, stamp_s: float, scan: RadarScan | None) -> None:
         backend, recorder = self.stages.backend, self.stages.recorder
         with self._clock.time("recorder"):
-            record = FrameRecord(self._frames, stamp_s, backend.latest_pose(), scan, backend.status)
+            index = len(self._health.stamps_s)
+            record = FrameRecord(index, stamp_s, backend.latest_pose(), scan, backend.status)
             recorder.log_frame(record)
             self._snapshot(stamp_s, recorder.due(stamp_s))
         self._health.add_frame(stamp_s, backend.status)
-        self._frames += 1
-        self._last_stamp_s = stamp_s
         if self._on_progress is not None:
             self._on_progress(stamp_s, backend.status.text())
 
