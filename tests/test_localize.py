@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from sim_scenes import l_world
 
+from smokyslam.config import LocalizeConfig
 from smokyslam.errors import MapError
 from smokyslam.geometry import GridSpec, se2_between
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.mcl import MclSettings, MonteCarloLocalizer
+from smokyslam.localize.mcl import MonteCarloLocalizer
 from smokyslam.mapio import FREE
 from smokyslam.sim.raycast2d import cast_rays, directions_from_angles
 from smokyslam.sim.worlds import World
@@ -47,8 +48,8 @@ def corridor_path(n: int, start_x: float = 2.0) -> np.ndarray:
 
 def test_tracking_converges_from_a_metre_and_ten_degrees_off():
     world, rng = l_world(), np.random.default_rng(0)
-    field = LikelihoodField(trinary(world), world.spec)
-    mcl = MonteCarloLocalizer(field, MclSettings(max_particles=1000), seed=1)
+    settings = LocalizeConfig(max_particles=1000, seed=1)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
     truth = corridor_path(40)
     start = truth[0] + [0.8, 0.6, np.radians(10)]  # 1 m and 10 degrees off
     mcl.start_tracking(start, [1.0, 0.5, np.radians(15)])
@@ -62,8 +63,8 @@ def test_tracking_converges_from_a_metre_and_ten_degrees_off():
 
 def test_it_recovers_after_a_kidnapping():
     world, rng = l_world(), np.random.default_rng(2)
-    field = LikelihoodField(trinary(world), world.spec)
-    mcl = MonteCarloLocalizer(field, MclSettings(max_particles=2000), seed=3)
+    settings = LocalizeConfig(max_particles=2000, seed=3)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
     first = corridor_path(15, start_x=6.0)
     mcl.start_tracking(first[0], [0.1, 0.1, 0.05])
     assert walk(world, first, mcl, rng)[-1] < 0.2
@@ -81,7 +82,7 @@ def test_it_recovers_after_a_kidnapping():
 def test_a_map_without_an_occupied_cell_is_refused():
     cells = np.full((20, 20), FREE, dtype=np.int8)
     with pytest.raises(MapError, match="no occupied cell"):
-        LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
+        LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), LocalizeConfig())
 
 
 def test_the_bench_runs_the_filter_at_its_particle_count():

@@ -130,15 +130,16 @@ def localize_realtime_factor(
 ) -> float:
     """Real-time factor of the localizer's filter (predict + update + resample) with a fixed
     ``particles`` count and 40 radar points a frame, on a 20 x 20 m map, at ``rate_hz``."""
+    from smokyslam.config import LocalizeConfig
     from smokyslam.geometry import GridSpec
     from smokyslam.localize.likelihood import LikelihoodField
-    from smokyslam.localize.mcl import MclSettings, MonteCarloLocalizer
+    from smokyslam.localize.mcl import MonteCarloLocalizer
 
     cells = np.zeros((200, 200), dtype=np.int8)
     cells[[0, -1], :] = cells[:, [0, -1]] = cells[100, 50:150] = 100
-    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
-    settings = MclSettings(min_particles=particles, max_particles=particles)
-    mcl = MonteCarloLocalizer(field, settings, seed=0)
+    settings = LocalizeConfig(min_particles=particles, max_particles=particles)
+    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), settings)
+    mcl = MonteCarloLocalizer(field, settings)
     mcl.start_tracking(np.array([5.0, 5.0, 0.0]), np.array([0.5, 0.5, 0.2]))
     rng = np.random.default_rng(0)
     points = rng.uniform([-4.0, -4.0], [4.0, 4.0], (40, 2))

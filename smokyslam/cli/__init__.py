@@ -1,9 +1,10 @@
 """The ``smokyslam`` command line: glue over library functions that return results.
 
 Commands live in ``log_commands.py`` (logs, maps, configs), ``map_commands.py`` (the
-up-sampler), ``fusion_commands.py`` (registration, fusion) and ``run_commands.py`` (runs,
-comparisons, demo, bench) as plain functions, registered on the app here. Heavy modules are
-imported inside each command, after its arguments are validated. Known errors
+up-sampler), ``fusion_commands.py`` (registration, fusion), ``localize_commands.py``
+(localization) and ``run_commands.py`` (runs, comparisons, demo, bench) as plain
+functions, registered on the app here. Heavy modules are imported inside each command,
+after its arguments are validated. Known errors
 (SmokySlamError) become one line on stderr and exit code 1, never a traceback.
 """
 
@@ -16,7 +17,13 @@ from typing import Annotated
 import typer
 
 from smokyslam import __version__
-from smokyslam.cli import fusion_commands, log_commands, map_commands, run_commands
+from smokyslam.cli import (
+    fusion_commands,
+    localize_commands,
+    log_commands,
+    map_commands,
+    run_commands,
+)
 from smokyslam.errors import RunInterruptedError, SmokySlamError, TrainingInterruptedError
 
 app = typer.Typer(
@@ -42,6 +49,7 @@ COMMANDS = {
     "register": fusion_commands.register,
     "fuse": fusion_commands.fuse,
     "paper-table": fusion_commands.paper_table,
+    "localize": localize_commands.localize,
     "bench": run_commands.bench,
     "demo": run_commands.demo,
     "view": run_commands.view,

@@ -37,6 +37,10 @@ def simulate(
     ] = "office",
     duration: Annotated[float, typer.Option(min=1.0, help="Seconds of walking.")] = 60.0,
     seed: Annotated[int, typer.Option(help="Seed for the world, the walk and the sensors.")] = 0,
+    walk_seed: Annotated[
+        int | None,
+        typer.Option(help="Seed for the walk and the sensors only (default: --seed)."),
+    ] = None,
     sensors: Annotated[
         str,
         typer.Option(help="Sensors to record, e.g. radar,imu (no camera: many times faster)."),
@@ -65,6 +69,7 @@ def simulate(
             overwrite=overwrite,
             on_progress=update,
             sensors=chosen,
+            walk_seed=walk_seed,
         )
     typer.echo(
         f"wrote {result.log_path}: {result.duration_s:.0f} s of {result.world.name}, "

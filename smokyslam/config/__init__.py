@@ -27,6 +27,7 @@ from smokyslam.config.estimation import (
     SlamConfig,
 )
 from smokyslam.config.fusion import FusionConfig, RegistrationConfig, TrustConfig
+from smokyslam.config.localize import LocalizeConfig
 from smokyslam.config.recording import RecordingConfig
 from smokyslam.config.sensors import (
     CameraModelConfig,
@@ -58,6 +59,7 @@ __all__ = [
     "ImuModelConfig",
     "KeyframeConfig",
     "LidarConfig",
+    "LocalizeConfig",
     "LogConfig",
     "LoopClosureConfig",
     "MappingConfig",
@@ -102,6 +104,7 @@ class SmokySlamConfig(Section):
     upsample: UpsampleConfig = UpsampleConfig()
     fusion: FusionConfig = FusionConfig()
     recording: RecordingConfig = RecordingConfig()
+    localize: LocalizeConfig = LocalizeConfig()
 
 
 def deep_update(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

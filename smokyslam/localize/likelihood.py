@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import binary_dilation, distance_transform_edt
 
+from smokyslam.config import LocalizeConfig
 from smokyslam.errors import MapError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
@@ -20,17 +21,10 @@ from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
 class LikelihoodField:
     """``log_likelihood(particles, points)``: how well each pose explains the points."""
 
-    def __init__(
-        self,
-        cells: np.ndarray,
-        spec: GridSpec,
-        sigma_m: float = 0.15,
-        z_hit: float = 0.8,
-        z_rand: float = 0.2,
-        max_range_m: float = 10.0,
-        p_unknown: float = 0.02,
-    ) -> None:
+    def __init__(self, cells: np.ndarray, spec: GridSpec, config: LocalizeConfig) -> None:
         """``cells``: (rows, cols) trinary grid over ``spec`` (a map_server map)."""
+        sigma_m, z_hit, z_rand = config.hit_sigma_m, config.z_hit, config.z_rand
+        max_range_m, p_unknown = config.max_range_m, config.p_unknown
         cells = np.asarray(cells)
         occupied = cells == OCCUPIED
         if not occupied.any():

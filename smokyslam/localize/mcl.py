@@ -8,43 +8,31 @@ loops are over filter steps.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from smokyslam.config import LocalizeConfig
 from smokyslam.geometry import se2_compose, wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
 
-
-@dataclass(frozen=True)
-class MclSettings:
-    """min/max_particles: KLD bounds. kld_epsilon, kld_z: KLD error and its normal quantile.
-    bin_m, bin_rad: the histogram KLD counts occupied bins on. alpha_slow, alpha_fast: the
-    averages of the likelihood that decide random injection. motion_scale: variance
-    multiplier on the odometry covariance. points_weight: the exponent on each point's
-    likelihood (a scan's points are not independent: < 1 keeps one scan from collapsing the
-    filter onto one particle)."""
-
-    min_particles: int = 200
-    max_particles: int = 2000
-    kld_epsilon: float = 0.05
-    kld_z: float = 2.33
-    bin_m: float = 0.25
-    bin_rad: float = np.radians(10.0)
-    alpha_slow: float = 0.001
-    alpha_fast: float = 0.1
-    motion_scale: float = 4.0
-    points_weight: float = 0.3
+KLD_Z = 2.33
+"""The upper normal quantile of KLD's bound (1 - delta = 0.99)."""
+INJECT_FLOOR = 0.05
+"""Injection rates below this are the averages' noise, not a collapsed likelihood."""
+MODE_RADIUS_M, MODE_RADIUS_RAD = 1.0, np.radians(30.0)
+"""How far from the heaviest bin a particle still belongs to the main mode."""
 
 
 class MonteCarloLocalizer:
     """Verbs: :meth:`start_tracking` or :meth:`start_global`, then per radar frame
     :meth:`predict` and :meth:`update`; :meth:`estimate` at any time."""
 
-    def __init__(self, field: LikelihoodField, settings: MclSettings, seed: int = 0) -> None:
+    def __init__(self, field: LikelihoodField, settings: LocalizeConfig) -> None:
+        """``settings``: the particle bounds, KLD, augmented-MCL averages, the motion
+        noise's scale and the per-point exponent (``LocalizeConfig``); seeded by its
+        ``seed``."""
         self.field = field
         self.settings = settings
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(settings.seed)
         self.particles = np.zeros((0, 3))
         self.weights = np.zeros(0)
         self._w_slow = self._w_fast = 0.0
@@ -86,22 +74,28 @@ class MonteCarloLocalizer:
         """Weigh by the (N, 2) base-frame radar points, then resample."""
         if len(points_xy) == 0:
             return
-        log_l = self.field.log_likelihood(self.particles, points_xy)
-        log_l *= self.settings.points_weight
-        peak = log_l.max()
-        likelihood = np.exp(log_l - peak)
+        raw = self.field.log_likelihood(self.particles, points_xy)
+        log_l = raw * self.settings.points_weight
+        likelihood = np.exp(log_l - log_l.max())
         weights = self.weights * likelihood
         total = weights.sum()
+        # Augmented MCL: short and long averages of how well the particles explain a point
+        # (the weighted mean of each particle's per-point geometric-mean likelihood, before
+        # the tempering exponent), so they depend neither on the points' count nor on it.
+        mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
         if not np.isfinite(total) or total <= 0:
             weights, total = np.ones(len(weights)), float(len(weights))
         self.weights = weights / total
-        # Augmented MCL: short and long averages of the mean likelihood per point.
-        # Per point, so that the averages do not depend on how many points a scan has.
-        mean_l = float(np.exp((peak + np.log(np.mean(likelihood))) / len(points_xy)))
         s = self.settings
         self._w_slow += s.alpha_slow * (mean_l - self._w_slow) if self._w_slow else mean_l
         self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
-        self._resample(max(0.0, 1.0 - self._w_fast / self._w_slow) if self._w_slow else 0.0)
+        inject = max(0.0, 1.0 - self._w_fast / self._w_slow) if self._w_slow else 0.0
+        inject = inject if inject >= INJECT_FLOOR else 0.0
+        # Resample only when the weights have degenerated (or particles are to be injected):
+        # resampling every frame lets chance alone pick between equally good hypotheses.
+        ess = 1.0 / float(np.sum(self.weights**2))
+        if inject > 0.0 or ess < s.resample_ess * len(self.weights):
+            self._resample(inject)
 
     def _resample(self, inject: float) -> None:
         """Low-variance resampling to the KLD count, with random particles injected with
@@ -116,33 +110,62 @@ class MonteCarloLocalizer:
             particles[fresh] = self._random_particles(int(fresh.sum()))
         self._set(particles.copy())
 
+    def _bins(self) -> np.ndarray:
+        """(P, 3) int KLD histogram bins of the particles."""
+        s = self.settings
+        return np.column_stack(
+            [
+                np.floor(self.particles[:, :2] / s.kld_bin_m),
+                np.floor(self.particles[:, 2] / np.radians(s.kld_bin_deg)),
+            ]
+        ).astype(np.int64)
+
     def _kld_count(self) -> int:
         """Particles for a KLD bound on the error of the binned posterior (Fox 2003)."""
         s = self.settings
-        bins = np.column_stack(
-            [
-                np.floor(self.particles[:, :2] / s.bin_m),
-                np.floor(self.particles[:, 2] / s.bin_rad),
-            ]
-        ).astype(np.int64)
+        bins = self._bins()
         k = len(np.unique(bins[self.weights > 1e-9 / len(self.weights)], axis=0))
         if k <= 1:
             return s.min_particles
         a = 2.0 / (9.0 * (k - 1))
-        n = (k - 1) / (2 * s.kld_epsilon) * (1.0 - a + np.sqrt(a) * s.kld_z) ** 3
+        n = (k - 1) / (2 * s.kld_epsilon) * (1.0 - a + np.sqrt(a) * KLD_Z) ** 3
         return int(np.clip(np.ceil(n), s.min_particles, s.max_particles))
 
     # ------------------------------------------------------------------ result
 
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
-        """((3,) weighted mean pose (circular mean of the yaw), (3, 3) covariance)."""
-        w = self.weights
-        xy = w @ self.particles[:, :2]
-        yaw = np.arctan2(w @ np.sin(self.particles[:, 2]), w @ np.cos(self.particles[:, 2]))
-        mean = np.array([xy[0], xy[1], yaw])
+        """((3,) weighted mean pose of the main mode, (3, 3) covariance of the whole cloud).
+
+        The main mode: the particles within ``MODE_RADIUS_M`` and ``MODE_RADIUS_RAD`` of the
+        heaviest KLD bin's mean; the mean of a cloud split between places lies in neither.
+        """
+        mean = self._weighted_mean(self.particles, self.weights)
+        seed = self._weighted_mean(*self._heaviest_bin())
+        d = self.particles - seed
+        d[:, 2] = wrap_angle(d[:, 2])
+        near = (np.hypot(d[:, 0], d[:, 1]) < MODE_RADIUS_M) & (np.abs(d[:, 2]) < MODE_RADIUS_RAD)
+        mode = seed
+        if near.any():
+            mode = self._weighted_mean(self.particles[near], self.weights[near])
         d = self.particles - mean
         d[:, 2] = wrap_angle(d[:, 2])
-        return mean, (d * w[:, None]).T @ d
+        return mode, (d * self.weights[:, None]).T @ d
+
+    def _heaviest_bin(self) -> tuple[np.ndarray, np.ndarray]:
+        """The particles and weights of the KLD bin holding the most weight."""
+        bins = self._bins()
+        _, label = np.unique(bins, axis=0, return_inverse=True)
+        label = label.reshape(-1)
+        heaviest = np.argmax(np.bincount(label, weights=self.weights))
+        keep = label == heaviest
+        return self.particles[keep], self.weights[keep]
+
+    @staticmethod
+    def _weighted_mean(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        w = weights / weights.sum()
+        xy = w @ particles[:, :2]
+        yaw = np.arctan2(w @ np.sin(particles[:, 2]), w @ np.cos(particles[:, 2]))
+        return np.array([xy[0], xy[1], yaw])
 
     @property
     def count(self) -> int:

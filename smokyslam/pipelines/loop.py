@@ -6,6 +6,7 @@ radar scan here; the camera frame where the camera tracks it). Then, in the log'
 1. the frontends the source needs (radar odometry or dead reckoning; camera odometry);
 2. the backend (keyframes, factors, loop closures, one iSAM2 update per keyframe);
 3. the online maps (a radar keyframe's scan; a metric camera keyframe's landmarks);
+   or, in a saved map, the localizer (the radar frame's odometry step and points);
 4. the recorder (Rerun, or nothing): every frame, every tracked camera frame, and snapshots
    of the graph and the maps when it asks for them.
 
@@ -29,6 +30,7 @@ from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
 from smokyslam.frontends.camera.result import CameraOdometryResult
 from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
 from smokyslam.fusion.trust import TrustModel
+from smokyslam.localize.stage import LocalizationTrack, Localizer
 from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.health import RunHealth
@@ -53,7 +55,8 @@ class Stages:
     camera stage (None: no camera). ``camera_steps``: set when the camera carries the
     trajectory (camera-only); otherwise camera results feed the backend's camera factors.
     ``visual_map``: camera keyframes feed the visual map. ``trust``: the camera's trust from
-    its measured smoke, per visual keyframe."""
+    its measured smoke, per visual keyframe. ``localizer``: Monte Carlo localization in a
+    saved map, fed every radar frame (None: no localization)."""
 
     smoke: SmokeEmulator
     radar: RadarFrontend | None
@@ -64,6 +67,7 @@ class Stages:
     recorder: Recorder
     visual_map: bool
     trust: TrustModel
+    localizer: Localizer | None = None
 
     @property
     def streams(self) -> tuple[str, ...]:
@@ -86,7 +90,8 @@ class RunEstimate:
     time. maps: the online maps, to snapshot or render in any
     frame. graph: the backend's numbers (factors, keyframes, camera pairs, stage seconds), as
     ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
-    health: the odometry's and the camera's health over time.
+    health: the odometry's and the camera's health over time. localization: the localizer's
+    track, in the saved map's frame (None without a localizer).
     """
 
     stamps_s: np.ndarray
@@ -100,6 +105,7 @@ class RunEstimate:
     graph: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
     health: RunHealth = field(default_factory=RunHealth)
+    localization: LocalizationTrack | None = None
     interrupted: bool = False
 
 
@@ -172,13 +178,15 @@ class RunLoop:
 
     def _radar_frame(self, frame: RadarFrame) -> None:
         stages = self.stages
+        points_base_xy = stages.radar.points_base_xy(frame)
         with self._clock.time("backend"):
-            keyframe = stages.backend.add_odometry(
-                frame.odometry, stages.radar.points_base_xy(frame)
-            )
+            keyframe = stages.backend.add_odometry(frame.odometry, points_base_xy)
         with self._clock.time("maps"):
             if keyframe is not None:
                 stages.maps.add_radar_keyframe(keyframe.index, frame.scan)
+        if stages.localizer is not None:
+            with self._clock.time("localizer"):
+                stages.localizer.localize(frame.odometry, points_base_xy)
         self._processed(frame.odometry.stamp_s, frame.scan)
 
     def _camera_result(self, result: CameraOdometryResult) -> None:
@@ -230,7 +238,9 @@ class RunLoop:
         backend, recorder = self.stages.backend, self.stages.recorder
         with self._clock.time("recorder"):
             index = len(self._health.stamps_s)
-            record = FrameRecord(index, stamp_s, backend.latest_pose(), scan, backend.status)
+            localizer = self.stages.localizer
+            pose = backend.latest_pose() if localizer is None else localizer.pose
+            record = FrameRecord(index, stamp_s, pose, scan, backend.status)
             recorder.log_frame(record)
             self._snapshot(stamp_s, recorder.due(stamp_s))
         self._health.add_frame(stamp_s, backend.status)
@@ -247,10 +257,12 @@ class RunLoop:
             maps = {
                 name: (grid.to_cells(), grid.spec) for name, grid in self.stages.maps.maps().items()
             }
+        localizer = self.stages.localizer
+        path = backend.poses_world_base() if localizer is None else localizer.track.arrays()[1]
         self.stages.recorder.log_snapshot(
             RunSnapshot(
                 stamp_s,
-                backend.poses_world_base(),
+                path,
                 backend.keyframe_poses(),
                 np.asarray(backend.loop_edges, dtype=int).reshape(-1, 2),
                 maps,
@@ -305,4 +317,5 @@ class RunLoop:
             graph=graph,
             extra=extra,
             health=self._health,
+            localization=self.stages.localizer.track if self.stages.localizer else None,
         )

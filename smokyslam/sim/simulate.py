@@ -85,9 +85,12 @@ def simulate(
     overwrite: bool = False,
     on_progress: ProgressCallback | None = None,
     sensors: frozenset[str] = frozenset(SENSORS),
+    walk_seed: int | None = None,
 ) -> SimulationResult:
     """Simulate a walk through ``world_name`` for ``duration_s``; write the log to ``out_path``
-    with the named ``sensors``."""
+    with the named ``sensors``. ``seed`` builds the world; ``walk_seed`` (default: ``seed``)
+    plans the walk and seeds the sensor noise, so two walks can share one world (its
+    textures included)."""
     if duration_s <= 0:
         raise SmokySlamError(f"duration must be positive, got {duration_s}")
     started = time.perf_counter()
@@ -95,8 +98,9 @@ def simulate(
     log_writer = LogWriter(out_path, config.topics, overwrite=overwrite)  # checks the path now
     sim = config.simulation
     world = build_world(world_name, seed, sim)
-    trajectory = plan_walk(world, duration_s, seed, sim.trajectory)
-    rng = np.random.default_rng(seed)
+    walk_seed = seed if walk_seed is None else walk_seed
+    trajectory = plan_walk(world, duration_s, walk_seed, sim.trajectory)
+    rng = np.random.default_rng(walk_seed)
     radar = RadarModel(sim.radar, world)
     camera = CameraRenderer(world, sim.camera, config.rig.camera_height_m, seed)
     imu_samples = simulate_imu(trajectory, sim.imu, rng)

@@ -1,0 +1,115 @@
+"""``smokyslam localize``: Monte Carlo localization of a log in a saved map."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from smokyslam.cli.options import (
+    CalibrationOption,
+    ConfigOption,
+    OverwriteOption,
+    RerunOption,
+    RerunSpawnOption,
+    SmokeOption,
+    check_rerun,
+    echo_recording,
+    effective_config,
+    smoke_overrides,
+)
+from smokyslam.errors import ConfigError
+
+
+def parse_pose(text: str, option: str) -> np.ndarray:
+    """``x,y,yaw`` (metres, metres, degrees) as (3,) [x_m, y_m, yaw_rad]."""
+    parts = text.split(",")
+    try:
+        values = [float(part) for part in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ConfigError(f"{option} must be three numbers x,y,yaw (m, m, degrees), got '{text}'")
+    return np.array([values[0], values[1], math.radians(values[2])])
+
+
+def localize(
+    map_yaml: Annotated[
+        Path, typer.Argument(help="A map_server map (sparse, dense, fused, or a floor plan).")
+    ],
+    log: Annotated[Path, typer.Argument(help="A log with radar scans (.bag, .mcap, .db3, .log).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    init: Annotated[
+        str | None,
+        typer.Option(help="Tracking from this map pose: x,y,yaw (m, m, degrees)."),
+    ] = None,
+    init_offset: Annotated[
+        str | None,
+        typer.Option(
+            "--init-offset",
+            help="Tracking from the true start pose moved by dx,dy,dyaw (m, m, degrees; the "
+            "shift in map axes); needs ground truth; for evaluation.",
+        ),
+    ] = None,
+    global_: Annotated[
+        bool,
+        typer.Option("--global", help="Global localization: no initial pose (the default)."),
+    ] = False,
+    smoke: SmokeOption = None,
+    rerun: RerunOption = None,
+    rerun_spawn: RerunSpawnOption = False,
+    calibration: CalibrationOption = None,
+    overwrite: OverwriteOption = False,
+    config: ConfigOption = None,
+) -> None:
+    """Find the rig in a saved map along a log: trajectory.tum (map frame), metrics.json
+    (errors against ground truth, time to converge, particle counts), localization.png."""
+    cfg = effective_config(config, smoke_overrides(smoke), calibration)
+    if sum(x is not None for x in (init, init_offset)) + global_ > 1:
+        raise ConfigError("give one of --init, --init-offset and --global")
+    if not map_yaml.is_file():
+        raise ConfigError(f"map not found: {map_yaml}")
+    check_rerun(rerun, rerun_spawn)
+    from smokyslam.frontends.readers.registry import open_log
+    from smokyslam.pipelines.localize import StartRequest, localize_log
+    from smokyslam.progress import progress_bar
+
+    request = StartRequest(
+        init=parse_pose(init, "--init") if init is not None else None,
+        init_offset=parse_pose(init_offset, "--init-offset") if init_offset else None,
+    )
+    duration_s = open_log(log, cfg).summary().duration_s
+    with progress_bar(f"localizing {log.name}", duration_s) as update:
+        result = localize_log(
+            map_yaml,
+            log,
+            cfg,
+            out,
+            request,
+            on_progress=lambda t, s: update(t, status=s),
+            rerun_path=rerun,
+            rerun_spawn=rerun_spawn,
+            overwrite=overwrite,
+        )
+    typer.echo(f"wrote {result.out_dir}: {_summary(result.metrics)}")
+    echo_recording(rerun)
+
+
+def _summary(metrics: dict) -> str:
+    loc = metrics["localization"]
+    parts = [f"{loc['mode']}, {loc['frames']} frames"]
+    if loc.get("converge_time_s") is not None:
+        after = loc["after_convergence"]
+        parts.append(
+            f"converged after {loc['converge_time_s']:.1f} s, then position RMSE "
+            f"{after['position_rmse_m']:.3f} m, median yaw error {after['yaw_median_deg']:.2f} deg"
+        )
+    elif "all" in loc:
+        parts.append("not converged")
+    parts.append(f"particles {loc['particles']['mean']:.0f} on average")
+    if metrics.get("realtime_factor"):
+        parts.append(f"{metrics['realtime_factor']:.1f}x real time")
+    return "; ".join(parts)

@@ -1,0 +1,58 @@
+"""Config of ``smokyslam localize``: Monte Carlo localization in a saved map."""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from smokyslam.config.base import Section as _Section
+
+
+class LocalizeConfig(_Section):
+    """The likelihood field (``localize/likelihood.py``), the particle filter
+    (``localize/mcl.py``), the tracking start and what counts as converged."""
+
+    min_particles: int = Field(200, ge=10, description="KLD's lower bound on the particles")
+    max_particles: int = Field(2000, ge=10, description="KLD's upper bound; a global start")
+    kld_epsilon: float = Field(0.05, gt=0.0, description="KLD's bound on the posterior error")
+    kld_bin_m: float = Field(0.25, gt=0.0, description="KLD histogram cell, metres")
+    kld_bin_deg: float = Field(10.0, gt=0.0, description="KLD histogram cell, degrees")
+    alpha_slow: float = Field(0.001, gt=0.0, lt=1.0, description="augmented MCL's long average")
+    alpha_fast: float = Field(0.1, gt=0.0, lt=1.0, description="augmented MCL's short average")
+    motion_scale: float = Field(
+        4.0, gt=0.0, description="variance multiplier on the odometry's reported covariance"
+    )
+    points_weight: float = Field(
+        0.1, gt=0.0, le=1.0, description="exponent on each point's likelihood (points correlate)"
+    )
+    resample_ess: float = Field(
+        0.5,
+        gt=0.0,
+        le=1.0,
+        description="resample when the effective sample size falls below"
+        " this share of the particles",
+    )
+    hit_sigma_m: float = Field(0.3, gt=0.0, description="likelihood field: wall distance sigma")
+    z_hit: float = Field(0.8, ge=0.0, le=1.0, description="likelihood field: share of hits")
+    z_rand: float = Field(0.2, ge=0.0, le=1.0, description="likelihood field: share of clutter")
+    max_range_m: float = Field(10.0, gt=0.0, description="likelihood field: clutter's range")
+    p_unknown: float = Field(
+        0.1, gt=0.0, description="likelihood of a point in unknown space or off the map"
+    )
+    init_sigma_m: float = Field(1.0, gt=0.0, description="tracking start: position sigma")
+    init_sigma_deg: float = Field(15.0, gt=0.0, description="tracking start: heading sigma")
+    converged_m: float = Field(
+        0.3, gt=0.0, description="converged: position error at most this from then on"
+    )
+    converged_deg: float = Field(
+        10.0, gt=0.0, description="converged: heading error at most this from then on"
+    )
+    settle_s: float = Field(
+        5.0, ge=0.0, description="errors after this many seconds are reported apart"
+    )
+    seed: int = Field(0, description="the filter's random numbers")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> LocalizeConfig:
+        if self.min_particles > self.max_particles:
+            raise ValueError("min_particles must not exceed max_particles")
+        return self
