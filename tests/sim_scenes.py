@@ -33,6 +33,24 @@ def l_world() -> World:
     return World("l", occupied, np.ones_like(occupied), spec, start_pose=np.array([1.2, 1.2, 0]))
 
 
+def symmetric_hall() -> World:
+    """16 x 2 m hall (x in [0, 16], y in [0, 2]) that looks the same turned 180 degrees about
+    (8, 1): alcoves at x 3-4 (top) and 12-13 (bottom), 6-6.6 (bottom) and 9.4-10 (top). One
+    0.4 m pillar at (15.4, 1.4), with no twin near x = 0.6, breaks the symmetry."""
+    spec = GridSpec(origin_xy_m=(-0.5, -0.5), resolution_m=0.1, shape=(40, 180))
+    centres = spec.centres_of(
+        np.stack(np.meshgrid(np.arange(180), np.arange(40)), axis=-1).reshape(-1, 2)
+    ).reshape(40, 180, 2)
+    x, y = centres[..., 0], centres[..., 1]
+    free = (x > 0) & (x < 16) & (y > 0) & (y < 2)
+    for (x0, x1), top in (((3.0, 4.0), True), ((6.0, 6.6), False)):
+        for (a, b), up in (((x0, x1), top), ((16.0 - x1, 16.0 - x0), not top)):
+            free |= (x > a) & (x < b) & ((y >= 2) & (y < 2.8) if up else (y > -0.8) & (y <= 0))
+    free &= ~((x > 15.2) & (x < 15.6) & (y > 1.2) & (y < 1.6))
+    occupied = ~free
+    return World("hall", occupied, np.ones_like(occupied), spec, start_pose=np.array([4, 1, 0]))
+
+
 def distance_to_occupied(world: World, points_xy: np.ndarray) -> np.ndarray:
     """(N,) exact distance, metres, from each point to the nearest occupied square (0 inside)."""
     cells = np.argwhere(world.occupied)[:, ::-1]

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from sim_scenes import l_world
+from sim_scenes import l_world, symmetric_hall
 
 from smokyslam.config import LocalizeConfig
 from smokyslam.errors import MapError
-from smokyslam.geometry import GridSpec, se2_between
+from smokyslam.geometry import GridSpec, se2_between, wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
 from smokyslam.localize.mcl import MonteCarloLocalizer
 from smokyslam.mapio import FREE
@@ -17,10 +17,10 @@ BEAMS = np.radians(np.linspace(-60.0, 60.0, 40))  # the radar's field of view
 STEP_COV = np.diag([0.02, 0.02, np.radians(1.0)]) ** 2
 
 
-def scan(world: World, pose: np.ndarray, rng) -> np.ndarray:
+def scan(world: World, pose: np.ndarray, rng, max_range_m: float = 10.0) -> np.ndarray:
     """(N, 2) base-frame hits of the radar's beams from ``pose``, 2 cm noise."""
     directions = directions_from_angles(pose[2] + BEAMS)
-    hits = cast_rays(world, pose[:2], directions, 10.0)
+    hits = cast_rays(world, pose[:2], directions, max_range_m)
     ranges = hits.distance_m[hits.hit] + rng.normal(0.0, 0.02, hits.hit.sum())
     angles = BEAMS[hits.hit]
     return np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles)])
@@ -68,15 +68,64 @@ def test_it_recovers_after_a_kidnapping():
     first = corridor_path(15, start_x=6.0)
     mcl.start_tracking(first[0], [0.1, 0.1, 0.05])
     assert walk(world, first, mcl, rng)[-1] < 0.2
-    # Kidnapped: carried 5 m up the other arm of the L, the odometry none the wiser.
-    second = np.column_stack([np.full(40, 1.25), 4.0 + 0.1 * np.arange(40), np.full(40, np.pi / 2)])
+    # Kidnapped: carried to the far end of the other arm of the L, the odometry none the
+    # wiser, walking back towards the corner. (Walking away from it, the view down an arm is
+    # the view down the other: no filter could tell where it is.) Measured over 8 seeds:
+    # recovered for good after 3-31 frames.
+    back = 9.0 - 0.1 * np.arange(40)
+    second = np.column_stack([np.full(40, 1.25), back, np.full(40, -np.pi / 2)])
     errors = []
     for k in range(len(second)):
         step = se2_between(second[k - 1], second[k]) if k else se2_between(first[-1], first[-1])
         mcl.predict(step, STEP_COV)
         mcl.update(scan(world, second[k], rng))
         errors.append(np.hypot(*(mcl.estimate()[0][:2] - second[k, :2])))
-    assert errors[0] > 2.0 and min(errors[-10:]) < 0.3
+    assert errors[0] > 2.0 and np.all(np.array(errors[-8:]) < 0.3)
+
+
+def share_near(mcl: MonteCarloLocalizer, pose: np.ndarray) -> float:
+    """The particles' weight within 0.5 m and 20 degrees of ``pose``."""
+    d = mcl.particles - pose
+    d[:, 2] = wrap_angle(d[:, 2])
+    near = (np.hypot(d[:, 0], d[:, 1]) < 0.5) & (np.abs(d[:, 2]) < np.radians(20.0))
+    return float(mcl.weights[near].sum())
+
+
+def test_global_localization_finds_the_pose_with_no_start():
+    world, rng = l_world(), np.random.default_rng(4)
+    settings = LocalizeConfig(seed=5)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
+    mcl.start_global()
+    truth = corridor_path(40, start_x=3.0)
+    mcl.update(scan(world, truth[0], rng))
+    # Drawn where the first scan fits: far more particles near the truth than uniform
+    # sampling over 44 m2 and every heading puts there (about 2000 * 0.8 / 44 * 40 / 360).
+    assert share_near(mcl, truth[0]) > 0.02
+    errors = walk(world, truth, mcl, rng)
+    assert errors[-1] < 0.2 and np.all(errors[-10:] < 0.3)
+
+
+def test_global_localization_keeps_both_mirror_hypotheses_until_the_symmetry_breaks():
+    world, rng = symmetric_hall(), np.random.default_rng(0)
+    settings = LocalizeConfig(seed=0)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
+    truth = np.column_stack([4.0 + 0.2 * np.arange(46), np.ones(46), np.zeros(46)])
+    mirror = np.column_stack([16.0 - truth[:, 0], 2.0 - truth[:, 1], np.full(46, np.pi)])
+    mcl.start_global()
+    shares = []
+    for k in range(len(truth)):
+        if k:
+            delta = se2_between(truth[k - 1], truth[k]) + rng.normal(0.0, [0.01, 0.01, 0.005])
+            mcl.predict(delta, STEP_COV)
+        mcl.update(scan(world, truth[k], rng, max_range_m=5.0))  # the pillar: seen from x > 10
+        shares.append((share_near(mcl, truth[k]), share_near(mcl, mirror[k])))
+    shares = np.array(shares)
+    # Walking x = 4 -> 8 m, the two poses see the same: both keep their weight. Measured over
+    # 8 seeds at x = 8 m: 0.21-0.38 near the truth, 0.21-0.40 near its mirror.
+    assert np.all(shares[10:21] > 0.1), shares[10:21]
+    # Once the pillar is in sight, the mirror dies out and the truth takes the weight.
+    assert shares[-1, 0] > 0.95 and shares[-1, 1] < 0.02
+    assert np.hypot(*(mcl.estimate()[0][:2] - truth[-1, :2])) < 0.2
 
 
 def test_a_map_without_an_occupied_cell_is_refused():

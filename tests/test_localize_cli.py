@@ -77,6 +77,18 @@ def test_tracking_from_a_metre_and_ten_degrees_off_converges(scene, tmp_path):
     assert (out_dir / "config.yaml").is_file()
 
 
+def test_global_localization_converges_with_no_start(scene, tmp_path):
+    map_yaml, walk = scene
+    out = smokyslam("localize", map_yaml, walk, "--global", "--out", tmp_path / "g")
+    assert out.returncode == 0, out.stderr
+    loc = json.loads((tmp_path / "g" / "metrics.json").read_text())["localization"]
+    assert loc["mode"] == "global" and loc["start"] is None
+    # Measured over filter seeds 0-3: converged after 24.7-28.0 s (the walk runs along
+    # corridors first), then 0.10-0.14 m RMSE.
+    assert loc["converged"] and loc["converge_time_s"] < 35.0
+    assert loc["after_convergence"]["position_rmse_m"] < 0.2
+
+
 def test_a_start_far_off_without_its_uncertainty_does_not_count_as_converged(scene, tmp_path):
     map_yaml, walk = scene
     out_dir = tmp_path / "off"

@@ -13,6 +13,12 @@ class LocalizeConfig(_Section):
 
     min_particles: int = Field(200, ge=10, description="KLD's lower bound on the particles")
     max_particles: int = Field(2000, ge=10, description="KLD's upper bound; a global start")
+    global_candidates: int = Field(
+        20,
+        ge=1,
+        description="uniform poses drawn per particle placed globally or injected; the scan's"
+        " likelihood picks among them",
+    )
     kld_epsilon: float = Field(0.05, gt=0.0, description="KLD's bound on the posterior error")
     kld_bin_m: float = Field(0.25, gt=0.0, description="KLD histogram cell, metres")
     kld_bin_deg: float = Field(10.0, gt=0.0, description="KLD histogram cell, degrees")

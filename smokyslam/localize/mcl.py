@@ -36,6 +36,7 @@ class MonteCarloLocalizer:
         self.particles = np.zeros((0, 3))
         self.weights = np.zeros(0)
         self._w_slow = self._w_fast = 0.0
+        self._place_on_first_scan = False
 
     # ------------------------------------------------------------------ start
 
@@ -46,8 +47,10 @@ class MonteCarloLocalizer:
         self._set(np.asarray(pose, dtype=float) + noise)
 
     def start_global(self) -> None:
-        """Particles spread over the map's free cells, any heading."""
+        """Particles spread over the map's free cells, any heading; the first
+        :meth:`update` draws them again where its scan fits (see :meth:`_likely_particles`)."""
         self._set(self._random_particles(self.settings.max_particles))
+        self._place_on_first_scan = True
 
     def _random_particles(self, n: int) -> np.ndarray:
         free = self.field.free_xy
@@ -55,6 +58,21 @@ class MonteCarloLocalizer:
         jitter = self._rng.uniform(-0.5, 0.5, (n, 2)) * self.field.spec.resolution_m
         yaw = self._rng.uniform(-np.pi, np.pi, n)
         return np.column_stack([picks + jitter, yaw])
+
+    def _likely_particles(self, n: int, points_xy: np.ndarray) -> np.ndarray:
+        """(n, 3) poses drawn where the scan fits: ``global_candidates`` x n uniform poses,
+        resampled in proportion to the (tempered) likelihood of ``points_xy`` (mixture MCL's
+        dual sampling: a wrong place has little chance of being drawn, while the true one,
+        which uniform sampling hits only once in many thousand draws, is drawn often)."""
+        candidates = self._random_particles(n * self.settings.global_candidates)
+        log_l = self.field.log_likelihood(candidates, points_xy) * self.settings.points_weight
+        weights = np.exp(log_l - log_l.max())
+        return candidates[self._systematic(weights / weights.sum(), n)]
+
+    def _systematic(self, weights: np.ndarray, n: int) -> np.ndarray:
+        """(n,) indices drawn by low-variance resampling of normalised ``weights``."""
+        steps = (self._rng.uniform(0.0, 1.0 / n) + np.arange(n) / n).clip(max=1.0 - 1e-12)
+        return np.minimum(np.searchsorted(np.cumsum(weights), steps), len(weights) - 1)
 
     def _set(self, particles: np.ndarray) -> None:
         self.particles = particles
@@ -74,6 +92,9 @@ class MonteCarloLocalizer:
         """Weigh by the (N, 2) base-frame radar points, then resample."""
         if len(points_xy) == 0:
             return
+        if self._place_on_first_scan:
+            self._place_on_first_scan = False
+            self._set(self._likely_particles(len(self.particles), points_xy))
         raw = self.field.log_likelihood(self.particles, points_xy)
         log_l = raw * self.settings.points_weight
         likelihood = np.exp(log_l - log_l.max())
@@ -95,19 +116,17 @@ class MonteCarloLocalizer:
         # resampling every frame lets chance alone pick between equally good hypotheses.
         ess = 1.0 / float(np.sum(self.weights**2))
         if inject > 0.0 or ess < s.resample_ess * len(self.weights):
-            self._resample(inject)
+            self._resample(inject, points_xy)
 
-    def _resample(self, inject: float) -> None:
-        """Low-variance resampling to the KLD count, with random particles injected with
-        probability max(0, 1 - w_fast / w_slow)."""
+    def _resample(self, inject: float, points_xy: np.ndarray) -> None:
+        """Low-variance resampling to the KLD count, with particles injected with
+        probability max(0, 1 - w_fast / w_slow), drawn where the current scan fits."""
         # While the likelihood has collapsed, search with every particle there may be.
         n = self.settings.max_particles if inject > 0.1 else self._kld_count()
-        steps = (self._rng.uniform(0.0, 1.0 / n) + np.arange(n) / n).clip(max=1.0 - 1e-12)
-        index = np.searchsorted(np.cumsum(self.weights), steps)
-        particles = self.particles[np.minimum(index, len(self.particles) - 1)]
+        particles = self.particles[self._systematic(self.weights, n)]
         fresh = self._rng.uniform(size=n) < inject
         if fresh.any():
-            particles[fresh] = self._random_particles(int(fresh.sum()))
+            particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
         self._set(particles.copy())
 
     def _bins(self) -> np.ndarray:
