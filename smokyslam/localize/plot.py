@@ -21,8 +21,9 @@ def plot_localization(
     truth: GroundTruthTrajectory | None,
     title: str,
 ) -> Path:
-    """The map (black walls, white free, grey unknown), the first and last particle clouds,
-    the true path (grey) and the filter's mean path (red), its start and end marked."""
+    """The map (black walls, white free, grey unknown), the particles after the first scan and
+    at the end, the true path (grey) and the filter's mean path (red), its start and end
+    marked."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -35,7 +36,7 @@ def plot_localization(
     ax.imshow(image, origin="lower", extent=canvas.extent_m, interpolation="nearest")
     if first_particles is not None and len(first_particles):
         ax.scatter(
-            *first_particles[:, :2].T, s=1, color="#f0a000", alpha=0.3, label="particles, start"
+            *first_particles[:, :2].T, s=1, color="#f0a000", alpha=0.3, label="particles, first scan"
         )
     ax.scatter(*last_particles[:, :2].T, s=2, color="#00a0a0", alpha=0.6, label="particles, end")
     if truth is not None:

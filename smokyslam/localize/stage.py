@@ -63,12 +63,14 @@ class Localizer:
         self._started = False
         self.track = LocalizationTrack()
         self.first_particles: np.ndarray | None = None
-        """(P, 3) the particles as they were placed, before the first weighing."""
+        """(P, 3) the particles as the first scan left them (a global start draws them where
+        that scan fits)."""
 
     def localize(self, odometry: Odometry, points_base_xy: np.ndarray) -> np.ndarray:
         """Predict with the frame's odometry step, weigh by its (N, 2) base_link points;
         returns the (3,) mean pose of base_link in the map."""
-        if not self._started:  # the first frame only places the particles
+        first = not self._started
+        if first:  # the first frame only places the particles
             self._begin()
         else:
             step, covariance = se2_conjugate(
@@ -76,6 +78,8 @@ class Localizer:
             )
             self.mcl.predict(step, covariance)
         self.mcl.update(points_base_xy)
+        if first:
+            self.first_particles = self.mcl.particles.copy()
         mean, covariance = self.mcl.estimate()
         self.track.stamps_s.append(odometry.stamp_s)
         self.track.poses_map_base.append(mean)
@@ -94,4 +98,3 @@ class Localizer:
             self.mcl.start_global()
         else:
             self.mcl.start_tracking(self.start.pose_map_base, self.start.sigmas)
-        self.first_particles = self.mcl.particles.copy()
