@@ -35,9 +35,8 @@ def plot_localization(
     fig, ax = plt.subplots(figsize=(width, max(3.0, width * (y1 - y0) / max(x1 - x0, 1e-6))))
     ax.imshow(image, origin="lower", extent=canvas.extent_m, interpolation="nearest")
     if first_particles is not None and len(first_particles):
-        ax.scatter(
-            *first_particles[:, :2].T, s=1, color="#f0a000", alpha=0.3, label="particles, first scan"
-        )
+        first_xy = first_particles[:, :2].T
+        ax.scatter(*first_xy, s=1, color="#f0a000", alpha=0.3, label="particles, first scan")
     ax.scatter(*last_particles[:, :2].T, s=2, color="#00a0a0", alpha=0.6, label="particles, end")
     if truth is not None:
         ax.plot(*truth.poses_world_base[:, :2].T, color="0.45", lw=1.2, label="ground truth")
