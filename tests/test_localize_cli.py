@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from smokyslam.evaluation.trajectory_io import read_tum
 from smokyslam.geometry import GridSpec
@@ -75,6 +76,24 @@ def test_tracking_from_a_metre_and_ten_degrees_off_converges(scene, tmp_path):
     assert truth_stamps[0] <= stamps[0] and stamps[-1] <= truth_stamps[-1] + 0.1
     assert (out_dir / "localization.png").stat().st_size > 10_000
     assert (out_dir / "config.yaml").is_file()
+
+
+def test_tracking_in_smoke_is_recorded_for_rerun(scene, tmp_path):
+    from test_rerun_recorder import rows_per_entity
+
+    map_yaml, walk = scene
+    out_dir = tmp_path / "smoky"
+    args = ("--init-offset", "0.8,0.6,10", "--smoke", "0.3:0.4", "--rerun", out_dir / "loc.rrd")
+    out = smokyslam("localize", map_yaml, walk, *args, "--out", out_dir)
+    assert out.returncode == 0, out.stderr
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert yaml.safe_load((out_dir / "config.yaml").read_text())["smoke"]["radar_loss"] == 0.3
+    loc = metrics["localization"]
+    # Measured on this scene: RMSE 0.07 m after 5 s with 30 % of the radar returns lost.
+    assert loc["after_settle"]["position_rmse_m"] < 0.15
+    rows = rows_per_entity(out_dir / "loc.rrd")
+    assert rows["/world/map/rig"] == loc["frames"] == 401  # the filter's pose, every frame
+    assert rows["/world/map/trajectory/localize"] >= 30  # its path, once a second
 
 
 def test_global_localization_converges_with_no_start(scene, tmp_path):

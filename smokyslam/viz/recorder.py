@@ -105,9 +105,10 @@ class Recorder(Protocol):
         """The graph's path, keyframes, loop closures and (when due) the growing maps."""
 
     def log_result(
-        self, T_world_map: np.ndarray, stamps_s: np.ndarray, poses_map_base: np.ndarray
+        self, pose_world_map: np.ndarray, stamps_s: np.ndarray, poses_map_base: np.ndarray
     ) -> None:
-        """The end: where the map frame lies in the world, (3,), and the final path."""
+        """The end: where the map frame lies in the world, (3,) x, y, yaw, and the final
+        path."""
 
     def close(self) -> None: ...
 
@@ -132,7 +133,7 @@ class NullRecorder:
     def log_snapshot(self, snapshot: RunSnapshot) -> None:
         pass
 
-    def log_result(self, T_world_map, stamps_s, poses_map_base) -> None:
+    def log_result(self, pose_world_map, stamps_s, poses_map_base) -> None:
         pass
 
     def close(self) -> None:

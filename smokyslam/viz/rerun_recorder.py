@@ -202,11 +202,11 @@ class RerunRecorder:
     # ------------------------------------------------------------------ the end
 
     def log_result(
-        self, T_world_map: np.ndarray, stamps_s: np.ndarray, poses_map_base: np.ndarray
+        self, pose_world_map: np.ndarray, stamps_s: np.ndarray, poses_map_base: np.ndarray
     ) -> None:
         """The run's alignment (static: the whole run is then seen in the truth frame) and its
         final path at the last stamp."""
-        self._rec.log("world/map", transform(self._rr, se3_from_se2(T_world_map)), static=True)
+        self._rec.log("world/map", transform(self._rr, se3_from_se2(pose_world_map)), static=True)
         if len(stamps_s):
             self._set_time(float(stamps_s[-1]), self._frame)
             self._log_path(poses_map_base)
