@@ -129,7 +129,9 @@ def test_bad_weights_files_are_one_clear_error(tmp_path, content, message):
 def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path):
     """The pass is anchored to the world grid: the same place gives the same value in a map
     extended by unknown cells on any side (any shift, not only multiples of the stride)."""
-    upsampler = GanUpsampler(_weights(tmp_path), margin_cells=24, max_pass_cells=1024)
+    upsampler = GanUpsampler(
+        _weights(tmp_path), margin_cells=24, max_pass_cells=1024, keep_walls_above=1.0
+    )
     sparse, _ = _sparse_room()
     spec = GridSpec((-0.1, -0.1), 0.1, sparse.shape)
     base = upsampler.values(sparse, spec)
@@ -146,8 +148,8 @@ def test_tiles_blend_into_the_one_pass_result(tmp_path):
     rng = np.random.default_rng(3)
     cells = rng.choice(np.array([OCCUPIED, FREE, UNKNOWN], dtype=np.int8), size=(150, 230))
     spec = GridSpec((0.0, 0.0), 0.1, cells.shape)
-    whole = GanUpsampler(weights, 24, 1024).values(cells, spec)
-    tiled = GanUpsampler(weights, 24, 64).values(cells, spec)
+    whole = GanUpsampler(weights, 24, 1024, 1.0).values(cells, spec)
+    tiled = GanUpsampler(weights, 24, 64, 1.0).values(cells, spec)
     assert tiled.shape == whole.shape
     assert np.abs(tiled - whole).mean() < 0.01 and np.abs(tiled - whole).max() < 0.1
     # No seam: neighbouring cells differ no more along tile borders than anywhere else.
@@ -155,16 +157,30 @@ def test_tiles_blend_into_the_one_pass_result(tmp_path):
     assert step.max() < 3.0 * np.median(step) + 0.05
 
 
+def test_walls_the_radar_saw_stay_unless_the_network_is_sure_they_are_free(tmp_path):
+    weights = _weights(tmp_path)
+    sparse, _ = _sparse_room()
+    spec = GridSpec((-0.1, -0.1), 0.1, sparse.shape)
+    alone = GanUpsampler(weights, 24, 1024, 1.0).values(sparse, spec)
+    wall = sparse == OCCUPIED
+    above = float(np.median(alone[wall]))  # an untrained network: values near 0.5
+    kept = GanUpsampler(weights, 24, 1024, above).values(sparse, spec)
+    sure_free = wall & (alone < above)
+    assert wall.sum() > 10 and 0 < sure_free.sum() < wall.sum()  # both cases occur
+    assert np.all(kept[wall & ~sure_free] == 1.0)
+    assert np.array_equal(kept[~wall | sure_free], alone[~wall | sure_free])
+
+
 @pytest.mark.parametrize("shape", [(1, 1), (5, 3), (17, 40)])
 def test_maps_smaller_than_a_stride_work(tmp_path, shape):
-    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024)
+    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024, 1.0)
     cells = np.full(shape, FREE, dtype=np.int8)
     values = upsampler.values(cells, GridSpec((0.0, 0.0), 0.1, shape))
     assert values.shape == shape and np.isfinite(values).all()
 
 
 def test_an_all_unknown_map_stays_unknown(tmp_path):
-    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024)
+    upsampler = GanUpsampler(_weights(tmp_path), 8, 1024, 1.0)
     cells = np.full((40, 30), UNKNOWN, dtype=np.int8)
     values = upsampler.values(cells, GridSpec((0.0, 0.0), 0.1, cells.shape))
     assert (values == 0.5).all()

