@@ -16,8 +16,10 @@ from smokyslam.localize.likelihood import LikelihoodField
 
 KLD_Z = 2.33
 """The upper normal quantile of KLD's bound (1 - delta = 0.99)."""
-INJECT_FLOOR = 0.05
-"""Injection rates below this are the averages' noise, not a collapsed likelihood."""
+INJECT_FLOOR = 0.2
+"""Injection rates below this are the averages' noise, not a collapsed likelihood (a scan's
+fit swings by tens of percent from frame to frame; at 0.05 a walk into a poorly mapped room
+drew particles to a wrong place that fitted better for a few scans)."""
 MODE_RADIUS_M, MODE_RADIUS_RAD = 1.0, np.radians(30.0)
 """How far from the heaviest bin a particle still belongs to the main mode."""
 
