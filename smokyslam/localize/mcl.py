@@ -1,6 +1,8 @@
 """Monte Carlo localization in a saved map: predict with odometry, weigh by the likelihood
 field, resample (low-variance), adapt the particle count (KLD), recover from kidnapping by
-injecting random particles when the likelihood collapses (augmented MCL).
+injecting particles when the likelihood collapses (augmented MCL). Particles placed for a
+global start, and injected ones, are drawn where the current scan fits (mixture MCL's dual
+sampling), not uniformly.
 
 Everything is numpy over particles (and particles x points in the likelihood field); the only
 loops are over filter steps.
