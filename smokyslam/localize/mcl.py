@@ -125,8 +125,9 @@ class MonteCarloLocalizer:
     def _resample(self, inject: float, points_xy: np.ndarray) -> None:
         """Low-variance resampling to the KLD count, with particles injected with
         probability max(0, 1 - w_fast / w_slow), drawn where the current scan fits."""
-        # While the likelihood has collapsed, search with every particle there may be.
-        n = self.settings.max_particles if inject > 0.1 else self._kld_count()
+        # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
+        # every particle there may be.
+        n = self.settings.max_particles if inject > 0.0 else self._kld_count()
         particles = self.particles[self._systematic(self.weights, n)]
         fresh = self._rng.uniform(size=n) < inject
         if fresh.any():

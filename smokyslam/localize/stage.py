@@ -60,7 +60,6 @@ class Localizer:
         self.mcl = mcl
         self.start = start
         self._pose_base_radar = np.asarray(pose_base_radar, dtype=float)
-        self._started = False
         self.track = LocalizationTrack()
         self.first_particles: np.ndarray | None = None
         """(P, 3) the particles as the first scan left them (a global start draws them where
@@ -69,7 +68,7 @@ class Localizer:
     def localize(self, odometry: Odometry, points_base_xy: np.ndarray) -> np.ndarray:
         """Predict with the frame's odometry step, weigh by its (N, 2) base_link points;
         returns the (3,) mean pose of base_link in the map."""
-        first = not self._started
+        first = self.first_particles is None
         if first:  # the first frame only places the particles
             self._begin()
         else:
@@ -93,7 +92,6 @@ class Localizer:
         return self.track.poses_map_base[-1] if self.track.poses_map_base else None
 
     def _begin(self) -> None:
-        self._started = True
         if self.start.pose_map_base is None:
             self.mcl.start_global()
         else:
