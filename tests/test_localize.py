@@ -9,7 +9,7 @@ from smokyslam.errors import MapError
 from smokyslam.geometry import GridSpec, se2_between, wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
 from smokyslam.localize.mcl import MonteCarloLocalizer
-from smokyslam.mapio import FREE
+from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
 from smokyslam.sim.raycast2d import cast_rays, directions_from_angles
 from smokyslam.sim.worlds import World
 
@@ -132,6 +132,27 @@ def test_a_map_without_an_occupied_cell_is_refused():
     cells = np.full((20, 20), FREE, dtype=np.int8)
     with pytest.raises(MapError, match="no occupied cell"):
         LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), LocalizeConfig())
+
+
+def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
+    """A sparse radar map knows a wall as one row of cells: free in front, unknown behind.
+    A point a cell behind it is as near the wall as one a cell in front, and must score so
+    (scoring it as unknown space pushed the filter about 0.25 m off on sparse maps); a
+    point in unknown space far from any wall still gets ``p_unknown``."""
+    cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    cells[:20] = FREE
+    cells[20] = OCCUPIED  # the wall along y = 2.0-2.1 m; nothing seen behind it
+    settings = LocalizeConfig()
+    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), settings)
+    at_origin = np.zeros((1, 3))
+    front, on, behind, far = ([[2.0, y]] for y in (1.95, 2.05, 2.15, 3.85))
+    score = {
+        k: field.log_likelihood(at_origin, np.array(p))[0]
+        for k, p in {"front": front, "on": on, "behind": behind, "far": far}.items()
+    }
+    assert score["behind"] == pytest.approx(score["front"])
+    assert score["on"] > score["front"] > np.log(settings.p_unknown) + 2.0
+    assert score["far"] == pytest.approx(np.log(settings.p_unknown))
 
 
 def test_the_bench_runs_the_filter_at_its_particle_count():

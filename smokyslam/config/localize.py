@@ -42,7 +42,9 @@ class LocalizeConfig(_Section):
     z_rand: float = Field(0.2, ge=0.0, le=1.0, description="likelihood field: share of clutter")
     max_range_m: float = Field(10.0, gt=0.0, description="likelihood field: clutter's range")
     p_unknown: float = Field(
-        0.1, gt=0.0, description="likelihood of a point in unknown space or off the map"
+        0.1,
+        gt=0.0,
+        description="likelihood of a point off the map, and the least of one in unknown space",
     )
     init_sigma_m: float = Field(1.0, gt=0.0, description="tracking start: position sigma")
     init_sigma_deg: float = Field(15.0, gt=0.0, description="tracking start: heading sigma")
