@@ -143,7 +143,9 @@ class OutputFolder:
         target = self.path(METRICS_FILE)
         current = json.loads(target.read_text()) if target.is_file() else {}
         merged = _jsonable(deep_update(current, metrics))
-        target.write_text(json.dumps(merged, indent=2) + "\n")
+        partial = target.with_name(f".{target.name}.partial")
+        partial.write_text(json.dumps(merged, indent=2) + "\n")
+        partial.replace(target)  # whole or not at all, even if the run is killed here
         return merged
 
     def write_map(

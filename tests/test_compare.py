@@ -2,6 +2,7 @@
 
 import csv
 import json
+import time
 from pathlib import Path
 
 import cv2
@@ -272,3 +273,56 @@ def test_a_finished_comparison_is_not_overwritten_by_accident(office_log, tmp_pa
     )
     assert [row.status for row in result.rows] == ["ok"]
     assert (out / "notes.txt").read_text() == "mine"  # only the comparison's own files go
+
+
+def test_compare_runs_on_an_existing_dask_scheduler(office_log, tmp_path):
+    from dask.distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster,
+        Client(cluster) as client,
+    ):
+        result = compare(
+            office_log,
+            ["dead-reckoning"],
+            parse_smoke_levels("0:0"),
+            load_config(),
+            tmp_path / "cmp",
+            scheduler=cluster.scheduler_address,
+        )
+        prefixes = client.run_on_scheduler(
+            lambda dask_scheduler: list(dask_scheduler.task_prefixes)
+        )
+    assert [(r.source, r.status) for r in result.rows] == [("dead-reckoning", "ok")]
+    assert 0.005 < result.rows[0].metrics["trajectory"]["ate_rmse_m"] < 0.5
+    assert prefixes == ["run-dead-reckoning"]  # the run was a task of that cluster
+
+
+def test_a_stopped_batch_keeps_what_its_runs_computed(office_log, tmp_path):
+    from dask.distributed import Client, Event, LocalCluster
+
+    from smokyslam.pipelines.executor import new_stop_name
+
+    level = SmokeLevel("0", "0")
+    stop = new_stop_name()
+    job = CompareJob("radar", level, office_log, load_config(), tmp_path / "radar", stop)
+    with (
+        LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster,
+        Client(cluster) as client,
+    ):
+        event = Event(stop, client=client)
+        running = client.submit(run_job, job, pure=False)
+        deadline = time.monotonic() + 60
+        while not (job.run_dir / "config.yaml").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(1.0)  # under way
+        event.set()
+        row = running.result(timeout=30)
+        # A job of a batch stopped before it began does not start (no folder).
+        later = CompareJob("radar", level, office_log, load_config(), tmp_path / "later", stop)
+        never = client.submit(run_job, later, pure=False).result(timeout=30)
+    assert (row.status, row.error) == ("interrupted", "interrupted")
+    metrics = json.loads((job.run_dir / "metrics.json").read_text())
+    assert metrics["interrupted"] is True and 0 < metrics["trajectory"]["frames"] < 301
+    assert (never.status, never.error) == ("interrupted", "not run")
+    assert not later.run_dir.exists()

@@ -141,6 +141,10 @@ def compare(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Parallel runs (default: 2, or 1 on one core)."),
     ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="Run on this Dask scheduler (e.g. tcp://host:8786), not a local one."),
+    ] = None,
     rerun: RerunOption = None,
     rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
@@ -168,6 +172,7 @@ def compare(
             overwrite=overwrite,
             rerun_path=rerun,
             rerun_spawn=rerun_spawn,
+            scheduler=scheduler,
         )
     typer.echo(result.markdown_path.read_text(), nl=False)
     typer.echo(f"wrote {result.out_dir}/ ({total} runs in {result.wall_s:.1f} s)")

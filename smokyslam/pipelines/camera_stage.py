@@ -1,11 +1,11 @@
 """The camera stage of the run loop: smoke and camera odometry, in a worker process or inline.
 
-With ``worker`` the camera tracks in a spawned process of its own (a second core: a thread
+With ``worker`` the camera tracks in a worker process of its own (a second core: a thread
 gained little, the GIL is held through most of the tracker), while the main process reads the
 log and runs radar odometry and the backend. Smoke is applied where the frame is tracked, by
 the run's one :class:`SmokeEmulator` (seeded per frame, so a frame's smoke is the same
 wherever it is applied), and only to the frames that are tracked (every ``stride``-th): that
-keeps the fused run fast under smoke. As with any spawned process, a script that starts a run
+keeps the fused run fast under smoke. As with any such worker, a script that starts a run
 at import time needs the ``if __name__ == "__main__":`` guard.
 """
 

@@ -1,4 +1,4 @@
-"""``smokyslam compare``: odometry sources crossed with smoke levels, run in parallel processes.
+"""``smokyslam compare``: odometry sources crossed with smoke levels, run in parallel on Dask.
 
 Levels. Each ``--smoke`` item is ``R:C[:H]`` (radar loss : camera noise : haze, the notation
 of every command; the paper pairs radar loss and camera noise). ``--haze`` values are crossed
@@ -37,8 +37,6 @@ from smokyslam.smoke import SmokeLevel, check_number, parse_smoke
 
 logger = logging.getLogger(__name__)
 
-# torch, gtsam and OpenCV keep threads and locks that a forked child inherits half-held.
-START_METHOD = "spawn"
 ERROR_LOG = "error.log"
 COMPARE_OUTPUTS = (
     "compare.csv",
@@ -125,10 +123,14 @@ def compare(
     overwrite: bool = False,
     rerun_path: Path | str | None = None,
     rerun_spawn: bool = False,
+    scheduler: str | None = None,
 ) -> CompareResult:
     """Run every source at every level over the log; write the runs, the table and the plots.
 
-    ``workers``: parallel processes (default :func:`default_workers`). Failed runs are rows
+    ``workers``: parallel runs, each a task on a LocalCluster of that many Dask worker
+    processes (default :func:`default_workers`; 1 runs them here, in order), or on the
+    existing cluster at ``scheduler`` (its workers must see the log and ``out_dir``, e.g. on a
+    shared disk). Failed runs are rows
     with status ``failed``; only bad arguments (ConfigError), an unreadable log or an output
     folder holding an earlier comparison (without ``overwrite``) raise. Ctrl-C writes the
     table of the runs so far (the others ``interrupted``) and raises RunInterruptedError.
@@ -149,8 +151,9 @@ def compare(
     jobs = make_jobs(log_path, sources, levels, config, out_dir)
     config_path = write_config(config, out_dir / "config.yaml")
     workers = workers or default_workers(len(jobs))
-    logger.info("compare: %d runs on %d workers into %s", len(jobs), workers, out_dir)
-    rows, interrupted = run_jobs(jobs, workers, on_progress)
+    where = scheduler or f"{workers} workers"
+    logger.info("compare: %d runs on %s into %s", len(jobs), where, out_dir)
+    rows, interrupted = run_jobs(jobs, workers, on_progress, scheduler)
     csv_path, markdown_path = write_tables(rows, out_dir)
     if interrupted:  # the table of what finished, marked; no plots
         raise RunInterruptedError(out_dir)

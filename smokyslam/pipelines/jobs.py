@@ -1,51 +1,41 @@
-"""Runs of a comparison as jobs: each one a whole ``run_log`` in a worker process.
+"""Runs of a comparison as jobs: each one a whole ``run_log``, on Dask workers (the executor
+layer ``sweep`` runs on, :mod:`smokyslam.pipelines.executor`) or, with one worker, here.
 
-Ctrl-C stops a comparison within a couple of seconds: jobs not started are cancelled, running
-ones get the interrupt (their partial outputs are kept, as for a single run) and are waited
-for up to ``STOP_WAIT_S``, then their processes are ended. Workers ignore Ctrl-C while idle,
-so none prints a traceback.
+Ctrl-C stops a comparison within a couple of seconds: the batch's stop flag is set, so
+running runs end as a Ctrl-C'd run does (their partial outputs kept) and queued ones do not
+start; they are waited for up to ``STOP_WAIT_S``, then the cluster is closed. Workers ignore
+Ctrl-C, so none prints a traceback.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import logging
-import multiprocessing
 import os
 import signal
 import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from concurrent.futures import (
-    FIRST_COMPLETED,
-    Future,
-    InvalidStateError,
-    ProcessPoolExecutor,
-    wait,
-)
 from dataclasses import dataclass
 from pathlib import Path
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import RunInterruptedError, SmokySlamError
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
+from smokyslam.pipelines.executor import StopFlag, dask_client, end_workers, new_stop_name
 from smokyslam.pipelines.run import run_log
-from smokyslam.pipelines.worker_process import start_worker_process
 from smokyslam.smoke import SmokeLevel
 
 logger = logging.getLogger(__name__)
 
-# torch, gtsam and OpenCV keep threads and locks that a forked child inherits half-held.
-START_METHOD = "spawn"
 ERROR_LOG = "error.log"
-STOP_WAIT_S = 1.5
+STOP_WAIT_S = 1.0
 """After Ctrl-C, how long running jobs get to write what they computed."""
 
 ProgressCallback = Callable[..., None]
-
-_DEFAULT_EXCEPTHOOK = threading.excepthook
 
 
 @dataclass(frozen=True)
@@ -57,23 +47,29 @@ class CompareJob:
     log_path: Path
     config: SmokySlamConfig
     run_dir: Path
+    stop_event: str | None = None
+    """The Dask Event that stops the job's batch (:class:`StopFlag`), if it has one."""
 
 
 def run_job(job: CompareJob) -> CompareRow:
-    """Run one job (in a worker process); any exception becomes a failed row, never a raise.
-    Ctrl-C during the run keeps its partial outputs: an ``interrupted`` row."""
+    """Run one job; any exception becomes a failed row, never a raise. Ctrl-C (or the
+    batch's stop) during the run keeps its partial outputs: an ``interrupted`` row; a job
+    whose batch was stopped before it started is ``not run``."""
+    should_stop = StopFlag(job.stop_event) if job.stop_event else None
+    if should_stop is not None and should_stop():
+        return _not_run(job)
     try:
         with _interruptible():
-            result = run_log(job.log_path, job.source, job.config, job.run_dir, overwrite=True)
+            result = run_log(
+                job.log_path,
+                job.source,
+                job.config,
+                job.run_dir,
+                overwrite=True,
+                should_stop=should_stop,
+            )
     except RunInterruptedError:
-        return CompareRow(
-            job.source,
-            job.level,
-            job.run_dir,
-            RunStatus.INTERRUPTED,
-            "interrupted",
-            metrics=_metrics(job.run_dir),
-        )
+        return _stopped(job, _metrics(job.run_dir))
     except KeyboardInterrupt:
         return CompareRow(job.source, job.level, job.run_dir, RunStatus.INTERRUPTED, "interrupted")
     except Exception as exc:
@@ -120,11 +116,15 @@ def default_workers(runs: int) -> int:
 
 
 def run_jobs(
-    jobs: Sequence[CompareJob], workers: int, on_progress: ProgressCallback | None = None
+    jobs: Sequence[CompareJob],
+    workers: int,
+    on_progress: ProgressCallback | None = None,
+    scheduler: str | None = None,
 ) -> tuple[list[CompareRow], bool]:
-    """Every job's row, in job order, and whether Ctrl-C stopped them. ``workers`` > 1 runs
-    them in that many spawned processes; 1 runs them here, one after another.
-    ``on_progress(done, total, status=...)`` per run."""
+    """Every job's row, in job order, and whether Ctrl-C stopped them. On Dask: on a
+    LocalCluster of ``workers`` processes, or on the cluster at ``scheduler``; one worker
+    and no scheduler runs them here, one after another. ``on_progress(done, total,
+    status=...)`` per run."""
     rows: list[CompareRow | None] = [None] * len(jobs)
 
     def finished(index: int, row: CompareRow) -> None:
@@ -134,75 +134,75 @@ def run_jobs(
             on_progress(done, len(jobs), status=f"{row.run_dir.name} {row.status.value}")
 
     interrupted = False
-    if workers <= 1:
+    if workers <= 1 and scheduler is None:
         for index, job in enumerate(jobs):
             finished(index, run_job(job))
             if rows[index].status is RunStatus.INTERRUPTED:
                 interrupted = True
                 break
     else:
-        interrupted = _run_in_pool(jobs, workers, finished)
+        interrupted = _run_on_dask(jobs, workers, scheduler, finished)
     return [row or _not_run(job) for row, job in zip(rows, jobs, strict=True)], interrupted
 
 
-def _run_in_pool(jobs: Sequence[CompareJob], workers: int, finished: Callable) -> bool:
-    """The jobs in a process pool; True when Ctrl-C stopped them."""
-    context = multiprocessing.get_context(START_METHOD)
-    pool = ProcessPoolExecutor(
-        workers,
-        mp_context=context,
-        initializer=start_worker_process,
-        initargs=(os.getpid(),),
-    )
-    futures: dict[Future, int] = {pool.submit(run_job, job): i for i, job in enumerate(jobs)}
+def _run_on_dask(
+    jobs: Sequence[CompareJob], workers: int, scheduler: str | None, finished: Callable
+) -> bool:
+    """The jobs as Dask tasks; True when Ctrl-C stopped them."""
+    stop_name = new_stop_name()
+    jobs = [dataclasses.replace(job, stop_event=stop_name) for job in jobs]
+    try:
+        with dask_client(scheduler, workers) as client:
+            return _gather(client, jobs, stop_name, finished)
+    except KeyboardInterrupt:  # while the cluster started: no run had begun
+        return True
+
+
+def _gather(client, jobs: Sequence[CompareJob], stop_name: str, finished: Callable) -> bool:
+    """Submit the jobs and hand each row to ``finished`` as it comes; on Ctrl-C set the
+    batch's stop flag and collect what ends within ``STOP_WAIT_S`` (True)."""
+    from dask.distributed import Event, as_completed
+
+    stop = Event(stop_name, client=client)
+    futures = {
+        client.submit(run_job, job, key=f"run-{job.run_dir.name}-{stop_name}", pure=False): i
+        for i, job in enumerate(jobs)
+    }
     pending = set(futures)
     try:
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                finished(futures[future], _row(future, jobs[futures[future]]))
+        for future in as_completed(futures):
+            pending.discard(future)
+            finished(futures[future], _row(future, jobs[futures[future]]))
     except KeyboardInterrupt:
-        _stop(pool, pending, futures, jobs, finished)
+        stop.set()  # running runs keep what they computed; queued ones do not start
+        deadline = time.monotonic() + STOP_WAIT_S
+        while pending and time.monotonic() < deadline:
+            for future in [f for f in pending if f.done()]:
+                pending.discard(future)
+                finished(futures[future], _row(future, jobs[futures[future]]))
+            time.sleep(0.05)
+        client.cancel(list(pending))
+        if pending and client.cluster is not None:
+            end_workers(client)  # this machine's workers: not waiting for their figures
+        for future in pending:  # a run still writing has written its numbers first
+            job = jobs[futures[future]]
+            metrics = _metrics(job.run_dir)
+            row = _stopped(job, metrics) if metrics else _not_run(job)
+            finished(futures[future], row)
         return True
-    finally:
-        pool.shutdown(wait=False, cancel_futures=True)
-    pool.shutdown(wait=True)
     return False
 
 
-def _ignore_cancelled_future_errors(args: threading.ExceptHookArgs) -> None:
-    """Python 3.11's process pool, broken by ending its workers, sets an exception on futures
-    already cancelled, and its manager thread prints the InvalidStateError. Nothing is lost
-    (those runs were cancelled): it is not printed. Anything else is, as usual."""
-    if args.exc_type is not InvalidStateError:
-        _DEFAULT_EXCEPTHOOK(args)
+def _stopped(job: CompareJob, metrics: dict) -> CompareRow:
+    return CompareRow(
+        job.source, job.level, job.run_dir, RunStatus.INTERRUPTED, "interrupted", metrics=metrics
+    )
 
 
-def _stop(pool, pending, futures, jobs, finished) -> None:
-    """Cancel what has not started, interrupt what runs, give it STOP_WAIT_S, end the rest."""
-    threading.excepthook = _ignore_cancelled_future_errors  # the rest of this process
-    for future in pending:
-        future.cancel()
-    processes = list(getattr(pool, "_processes", {}).values())  # no public handle on them
-    for process in processes:
-        with contextlib.suppress(OSError):
-            os.kill(process.pid, signal.SIGINT)
-    deadline = time.monotonic() + STOP_WAIT_S
-    running = {f for f in pending if not f.cancelled()}
-    while running and time.monotonic() < deadline:
-        done, running = wait(running, timeout=deadline - time.monotonic())
-        for future in done:
-            finished(futures[future], _row(future, jobs[futures[future]]))
-    for process in processes:
-        process.terminate()
-    for process in processes:
-        process.join(timeout=1.0)
-
-
-def _row(future: Future, job: CompareJob) -> CompareRow:
+def _row(future, job: CompareJob) -> CompareRow:
     try:
         return future.result()
-    except Exception as exc:  # the worker process died (crash, out of memory)
+    except Exception as exc:  # the task's worker died (crash, out of memory) or was lost
         message = f"{type(exc).__name__}: {exc}"
         return CompareRow(job.source, job.level, job.run_dir, RunStatus.FAILED, message)
 

@@ -109,12 +109,24 @@ class RunEstimate:
     interrupted: bool = False
 
 
+def _never() -> bool:
+    return False
+
+
 class RunLoop:
     """Runs :class:`Stages` over a stream of frames: one verb, :meth:`run`."""
 
-    def __init__(self, stages: Stages, on_progress: ProgressCallback | None = None) -> None:
+    def __init__(
+        self,
+        stages: Stages,
+        on_progress: ProgressCallback | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> None:
+        """``should_stop()``, asked before each frame: True ends the run as Ctrl-C does (a
+        batch's runs on Dask workers, where no Ctrl-C arrives, are stopped so)."""
         self.stages = stages
         self._on_progress = on_progress
+        self._should_stop = should_stop or _never
         self._order = InOrder()
         self._clock = StageClock()
         self._camera_restarts = 0
@@ -128,6 +140,8 @@ class RunLoop:
         try:
             try:
                 for frame in frames:
+                    if self._should_stop():
+                        raise KeyboardInterrupt  # a requested stop is a Ctrl-C
                     self._read(frame)
                     self._hand_over(keep=MAX_LAG)
                 self._finish()

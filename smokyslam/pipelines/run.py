@@ -23,7 +23,12 @@ from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import config_for_log, open_log
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunEstimate, RunLoop
-from smokyslam.pipelines.run_outputs import record_results, write_maps, write_trajectory
+from smokyslam.pipelines.run_outputs import (
+    record_results,
+    write_figures,
+    write_maps,
+    write_trajectory,
+)
 from smokyslam.pipelines.sources import SOURCES, build_stages, get_source
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
 from smokyslam.viz.recorder import NullRecorder, Recorder, RecordingSetup, open_recorder
@@ -51,11 +56,13 @@ def run_source(
     config: SmokySlamConfig,
     on_progress: ProgressCallback | None = None,
     recorder: Recorder | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> RunEstimate:
     """The one run loop of ``source`` over an open log, with no files: the estimate, in its
-    own map frame. The reader's ground truth is never touched."""
+    own map frame. The reader's ground truth is never touched. ``should_stop``: see
+    :class:`RunLoop`."""
     stages = build_stages(get_source(source), reader, config, recorder or NullRecorder())
-    return RunLoop(stages, on_progress).run(reader.frames(stages.streams))
+    return RunLoop(stages, on_progress, should_stop).run(reader.frames(stages.streams))
 
 
 def evaluate_source(
@@ -106,13 +113,14 @@ def run_log(
     rerun_path: Path | str | None = None,
     overwrite: bool = False,
     rerun_spawn: bool = False,
+    should_stop: Callable[[], bool] | None = None,
 ) -> RunResult:
     """Run ``source`` over the log at ``log_path`` and write its outputs into ``out_dir``.
 
     on_progress: (stamp_s, health text) as frames are processed. rerun_path: also write a
     Rerun recording (``.rrd``) there, as the run goes; rerun_spawn: stream it to a viewer.
     overwrite: replace an earlier run's outputs in ``out_dir`` (otherwise such a folder is
-    refused).
+    refused). should_stop: asked before each frame; True stops the run as Ctrl-C does.
     """
     spec = get_source(source)
     config = config_for_log(log_path, config)
@@ -125,6 +133,7 @@ def run_log(
         rerun_path,
         overwrite,
         rerun_spawn,
+        should_stop,
     )
 
 
@@ -137,6 +146,7 @@ def run_reader(
     rerun_path: Path | str | None = None,
     overwrite: bool = False,
     rerun_spawn: bool = False,
+    should_stop: Callable[[], bool] | None = None,
 ) -> RunResult:
     """:func:`run_log` over the reader ``open_reader()`` returns (a log, or live sensors),
     opened once the output folder is claimed."""
@@ -148,10 +158,12 @@ def run_reader(
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         recorder = open_recorder(rerun_path, config.recording, rerun_spawn)
         recorder.start(_recording_setup(reader, source, truth, gt_map))
-        estimate = run_source(reader, source, config, on_progress, recorder)
+        estimate = run_source(reader, source, config, on_progress, recorder, should_stop)
+        if estimate.interrupted:  # marked first: a stop may cut the writing short
+            out.update_metrics({"interrupted": True})
         with _dense_closed(estimate):  # the up-sampling worker stops, whatever happens
             evaluation = evaluate_source(estimate, truth, source)
-            write_trajectory(out, source, estimate, evaluation, truth, gt_map, reader)
+            write_trajectory(out, source, estimate, evaluation, truth, reader)
             observed = reader.observed_ground_truth_map()
             write_maps(out, source, estimate, evaluation, gt_map, observed, spec.camera_only)
             if (dense := estimate.maps.dense) is not None:
@@ -159,8 +171,7 @@ def run_reader(
         record_results(recorder, estimate, evaluation)
         if problems := reader.problems():
             out.update_metrics({"log": problems})
-        if estimate.interrupted:
-            out.update_metrics({"interrupted": True})
+        write_figures(out, source, estimate, evaluation, truth, gt_map)
         wall_s = time.perf_counter() - started
         duration_s = reader.summary().duration_s
         metrics = out.update_metrics(

@@ -36,11 +36,9 @@ def write_trajectory(
     estimate: RunEstimate,
     evaluation: RunEvaluation,
     truth: GroundTruthTrajectory | None,
-    gt_map: GroundTruthMap | None,
     reader: LogReader,
 ) -> dict[str, Any]:
-    """``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum``, the plots
-    (``trajectory.png``, ``error.png`` with ground truth, ``health.png``) and the
+    """``trajectory.tum``, ``trajectory_kitti.txt``, ``ground_truth.tum`` and the
     ``odometry``, ``trajectory`` and ``alignment`` parts of ``metrics.json``. TUM files are
     stamped on the log's own clock (``reader.log_time_s``), as evo expects."""
     poses = evaluation.to_truth.apply(estimate.poses_world_base)
@@ -60,6 +58,20 @@ def write_trajectory(
         **evaluation.metrics(),
         **estimate.graph,
     }
+    return out.update_metrics(metrics)
+
+
+def write_figures(
+    out: OutputFolder,
+    source: str,
+    estimate: RunEstimate,
+    evaluation: RunEvaluation,
+    truth: GroundTruthTrajectory | None,
+    gt_map: GroundTruthMap | None,
+) -> None:
+    """``trajectory.png``, ``error.png`` (with ground truth) and ``health.png``. Written after
+    every number and map (a run stopped while it draws has lost nothing it computed)."""
+    poses = evaluation.to_truth.apply(estimate.poses_world_base)
     plot_trajectory(
         out.path("trajectory.png"),
         source,
@@ -72,7 +84,6 @@ def write_trajectory(
     if truth is not None and evaluation.trajectory is not None:
         plot_error(out.path("error.png"), source, estimate.stamps_s, poses, estimate.lost, truth)
     plot_health(out.path("health.png"), source, estimate.health)
-    return out.update_metrics(metrics)
 
 
 def write_maps(

@@ -24,8 +24,8 @@ from pathlib import Path
 from smokyslam.config import SmokySlamConfig, write_config
 from smokyslam.errors import RunInterruptedError, SmokySlamError
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
+from smokyslam.pipelines.executor import dask_client
 from smokyslam.pipelines.jobs import CompareJob
-from smokyslam.sweep.executor import dask_client
 from smokyslam.sweep.plots import plot_ate_by_source, plot_fused_vs_best
 from smokyslam.sweep.results import SweepRow, write_csv, write_summary
 from smokyslam.sweep.spec import Sweep, World, load_sweep

@@ -1,9 +1,14 @@
-"""What every worker process of a run does first: leave Ctrl-C to its parent, die with it.
+"""How the run's worker processes start: leave Ctrl-C to their parent, die with it.
 
 A terminal's Ctrl-C reaches the whole process group; the main process handles it (keeps what
-was computed, stops its workers), so a worker ignores it rather than print a traceback. A
-worker whose parent is gone (killed, crashed) exits within ``WATCH_S`` instead of waiting
-forever on a pipe nobody writes to.
+was computed, stops its workers), so a worker ignores it rather than print a traceback. Every
+worker forks from one fork server started with Ctrl-C ignored (:func:`worker_context`): it
+ignores Ctrl-C from its first instruction, while the main process never ignores it, even
+while workers start (ignoring it there lost a Ctrl-C pressed in that moment; now it is held
+and raised once they have started: :func:`interrupt_held`). A fork from the server is clean
+too: none of the threads torch, gtsam or OpenCV keep in the main process. A worker whose
+parent is gone (killed, crashed) exits within ``WATCH_S`` instead of waiting forever on a
+pipe nobody writes to.
 """
 
 from __future__ import annotations
@@ -11,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import signal
 import threading
@@ -23,23 +29,32 @@ WATCH_S = 0.5
 
 def start_worker_process(parent_pid: int) -> None:
     """Call first in a worker's initializer, with the pid of the process that started it
-    (given by that process: by the time a worker has started, its parent may be gone)."""
+    (given by that process: by the time a worker has started, its parent may be gone; a
+    fork server's worker is not its parent's child, so the pid is watched, not getppid)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch() -> None:
-        while os.getppid() == parent_pid:
+        while _alive(parent_pid):
             time.sleep(WATCH_S)
         os._exit(0)  # the parent is gone: nothing is waiting for this worker's results
 
     threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, as another user's process (the pid was reused)
+        return False
+    return True
+
+
 @contextlib.contextmanager
 def sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while a worker is started: a child inherits an ignored signal, so a
-    Ctrl-C in the terminal reaches the main process only (and no worker prints a traceback
-    of it, even while it is still importing). Only the main thread can change signal
-    handlers; elsewhere nothing changes."""
+    """SIGINT ignored in this block (a process started in it inherits that). Only the main
+    thread can change signal handlers; elsewhere nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -48,6 +63,33 @@ def sigint_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def interrupt_held() -> Iterator[None]:
+    """A Ctrl-C during this block (workers starting) is held and raised as KeyboardInterrupt
+    when it ends, not in the middle of a half-started pool or cluster. Main thread only;
+    elsewhere nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pressed: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pressed.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pressed:
+        raise KeyboardInterrupt
+
+
+def worker_context() -> multiprocessing.context.BaseContext:
+    """The start method of every worker process: forks of a fork server that was started
+    with Ctrl-C ignored, so each of its forks ignores it from its first instruction (the
+    server is started once, in a few milliseconds; see the module docstring)."""
+    with sigint_ignored():
+        multiprocessing.forkserver.ensure_running()
+    return multiprocessing.get_context("forkserver")
 
 
 def _ready() -> bool:
@@ -66,16 +108,21 @@ def _niced_start(niceness: int, module: str, function: str, args: tuple) -> None
 def start_worker_pool(
     initializer: Callable[..., None], initargs: tuple, niceness: int = 0
 ) -> ProcessPoolExecutor:
-    """One spawned worker process (torch, gtsam and OpenCV threads do not survive a fork),
-    started now with SIGINT ignored and ``niceness`` added to its priority;
-    ``initializer(*initargs)`` runs in it first and should call :func:`start_worker_process`.
-    Give plain ``initargs`` for a niced worker: they are unpickled before it is niced."""
-    with sigint_ignored():
-        pool = ProcessPoolExecutor(
-            1,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_niced_start,
-            initargs=(niceness, initializer.__module__, initializer.__name__, initargs),
-        )
-        pool.submit(_ready)  # starts the worker inside the block
+    """One worker process (:func:`worker_context`), started now with ``niceness`` added to its
+    priority; ``initializer(*initargs)`` runs in it first and should call
+    :func:`start_worker_process`. Give plain ``initargs`` for a niced worker: they are
+    unpickled before it is niced. A Ctrl-C while it starts is raised once it has started (and
+    the worker is shut down)."""
+    pool = ProcessPoolExecutor(
+        1,
+        mp_context=worker_context(),
+        initializer=_niced_start,
+        initargs=(niceness, initializer.__module__, initializer.__name__, initargs),
+    )
+    try:
+        with interrupt_held():
+            pool.submit(_ready)  # starts the worker inside the block
+    except KeyboardInterrupt:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
     return pool
