@@ -363,3 +363,33 @@ def test_a_ctrl_c_while_a_worker_starts_is_held_not_lost():
 
 def _worker_init() -> None:
     pass
+
+
+def test_ctrl_c_stops_a_sweep_and_leaves_no_worker(office_log, tmp_path):
+    sweep_file = tmp_path / "sweep.yaml"
+    sweep_file.write_text(
+        f"worlds:\n  - {{log: {office_log}}}\nsmoke: ['0:0', '0.1:0.2']\nsources: [radar, fused]\n"
+    )
+    delay_s = 1.0
+    for attempt in range(5):
+        out_dir = tmp_path / f"sweep{attempt}"
+        process = _start(["sweep", sweep_file, "--out", out_dir, "--workers", "2"], out_dir, 0.0)
+        deadline = time.monotonic() + 60
+        while not list(out_dir.glob("runs/*/*/*/config.yaml")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(delay_s)
+        children = _children(process.pid)
+        os.killpg(process.pid, signal.SIGINT)  # a terminal's Ctrl-C: workers get it too
+        started = time.monotonic()
+        _, stderr = process.communicate(timeout=60)
+        if process.returncode == 0:  # every run had finished
+            delay_s /= 2
+            continue
+        assert time.monotonic() - started < 2.5
+        assert process.returncode == 130 and "Traceback" not in stderr, stderr
+        table = (out_dir / "sweep.csv").read_text().splitlines()
+        assert len(table) == 5 and any(",interrupted," in row for row in table)
+        time.sleep(1.0)
+        assert not [pid for pid in children if _alive(pid)]
+        return
+    pytest.fail("no Ctrl-C landed inside the sweep in five tries")

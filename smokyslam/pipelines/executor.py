@@ -15,7 +15,7 @@ import logging
 import os
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from smokyslam.errors import ConfigError
@@ -87,6 +87,23 @@ def end_workers(client: Any) -> None:
         for pid in client.run(os.getpid, wait=True).values():
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGTERM)
+
+
+def wind_down(client: Any, pending: set, on_done: Callable[[Any], None], wait_s: float) -> set:
+    """Once a batch's stop flag is set: every pending future that ends within ``wait_s``
+    goes to ``on_done``; the rest are cancelled and, on this machine's cluster, the workers
+    running them ended (:func:`end_workers`). Returns the futures cut off."""
+    pending = set(pending)
+    deadline = time.monotonic() + wait_s
+    while pending and time.monotonic() < deadline:
+        for future in [f for f in pending if f.done()]:
+            pending.discard(future)
+            on_done(future)
+        time.sleep(0.05)
+    client.cancel(list(pending))
+    if pending and client.cluster is not None:
+        end_workers(client)
+    return pending
 
 
 def new_stop_name() -> str:

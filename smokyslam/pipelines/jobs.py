@@ -16,7 +16,6 @@ import logging
 import os
 import signal
 import threading
-import time
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -25,7 +24,7 @@ from pathlib import Path
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import RunInterruptedError, SmokySlamError
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
-from smokyslam.pipelines.executor import StopFlag, dask_client, end_workers, new_stop_name
+from smokyslam.pipelines.executor import StopFlag, dask_client, new_stop_name, wind_down
 from smokyslam.pipelines.run import run_log
 from smokyslam.smoke import SmokeLevel
 
@@ -69,7 +68,7 @@ def run_job(job: CompareJob) -> CompareRow:
                 should_stop=should_stop,
             )
     except RunInterruptedError:
-        return _stopped(job, _metrics(job.run_dir))
+        return _stopped(job, written_metrics(job.run_dir))
     except KeyboardInterrupt:
         return CompareRow(job.source, job.level, job.run_dir, RunStatus.INTERRUPTED, "interrupted")
     except Exception as exc:
@@ -104,7 +103,8 @@ def _interruptible():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _metrics(run_dir: Path) -> dict:
+def written_metrics(run_dir: Path) -> dict:
+    """What a run has written into its ``metrics.json`` so far ({} if nothing)."""
     with contextlib.suppress(OSError, ValueError):
         return json.loads((run_dir / "metrics.json").read_text())
     return {}
@@ -175,20 +175,14 @@ def _gather(client, jobs: Sequence[CompareJob], stop_name: str, finished: Callab
             finished(futures[future], _row(future, jobs[futures[future]]))
     except KeyboardInterrupt:
         stop.set()  # running runs keep what they computed; queued ones do not start
-        deadline = time.monotonic() + STOP_WAIT_S
-        while pending and time.monotonic() < deadline:
-            for future in [f for f in pending if f.done()]:
-                pending.discard(future)
-                finished(futures[future], _row(future, jobs[futures[future]]))
-            time.sleep(0.05)
-        client.cancel(list(pending))
-        if pending and client.cluster is not None:
-            end_workers(client)  # this machine's workers: not waiting for their figures
-        for future in pending:  # a run still writing has written its numbers first
-            job = jobs[futures[future]]
-            metrics = _metrics(job.run_dir)
-            row = _stopped(job, metrics) if metrics else _not_run(job)
-            finished(futures[future], row)
+
+        def collect(future) -> None:
+            finished(futures[future], _row(future, jobs[futures[future]]))
+
+        for future in wind_down(client, pending, collect, STOP_WAIT_S):
+            job = jobs[futures[future]]  # cut off while writing: its numbers came first
+            metrics = written_metrics(job.run_dir)
+            finished(futures[future], _stopped(job, metrics) if metrics else _not_run(job))
         return True
     return False
 

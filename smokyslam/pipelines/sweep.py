@@ -5,7 +5,8 @@ The table of contents of :func:`sweep`: load and check the sweep file; plan the 
 out the runs already finished (a complete ``metrics.json``); on the cluster, one task per
 world to simulate and one per run depending on it; gather the rows as they finish (a failed
 or killed run is a row with its error); write ``sweep.csv``, ``summary.md`` and the plots.
-Ctrl-C cancels the tasks, closes the cluster and writes the rows so far.
+Ctrl-C sets the sweep's stop flag (running runs keep what they computed, queued ones and
+simulations do not start), closes the cluster and writes the rows so far.
 
 A sweep's runs track the camera inline (``slam.camera_process`` off): a worker is a core, and
 the results do not depend on it.
@@ -14,6 +15,7 @@ the results do not depend on it.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import logging
 import time
@@ -24,8 +26,8 @@ from pathlib import Path
 from smokyslam.config import SmokySlamConfig, write_config
 from smokyslam.errors import RunInterruptedError, SmokySlamError
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
-from smokyslam.pipelines.executor import dask_client
-from smokyslam.pipelines.jobs import CompareJob
+from smokyslam.pipelines.executor import dask_client, new_stop_name, wind_down
+from smokyslam.pipelines.jobs import STOP_WAIT_S, CompareJob, written_metrics
 from smokyslam.sweep.plots import plot_ate_by_source, plot_fused_vs_best
 from smokyslam.sweep.results import SweepRow, write_csv, write_summary
 from smokyslam.sweep.spec import Sweep, World, load_sweep
@@ -130,16 +132,18 @@ def sweep(
 def _run(base, jobs, pending, rows, out_dir, scheduler, workers, on_progress, on_dashboard):
     """The pending runs (and the simulations they need, with the ``base`` config's simulator)
     on Dask; ``rows`` filled as they end."""
-    from dask.distributed import as_completed
+    from dask.distributed import Event, as_completed
 
     needed = {jobs[i].world.name: jobs[i].world for i in pending}
     to_simulate = [
         w for w in needed.values() if w.log is None and not w.log_path(out_dir).is_file()
     ]
     total = len(to_simulate) + len(pending)
+    stop_name = new_stop_name()
     with dask_client(scheduler, workers) as client:
         if on_dashboard is not None:
             on_dashboard(client.dashboard_link)
+        stop = Event(stop_name, client=client)
         simulations = {
             world.name: client.submit(
                 simulate_world,
@@ -154,7 +158,7 @@ def _run(base, jobs, pending, rows, out_dir, scheduler, workers, on_progress, on
         runs = {
             client.submit(
                 run_one,
-                jobs[i].job,
+                dataclasses.replace(jobs[i].job, stop_event=stop_name),
                 simulations.get(jobs[i].world.name),
                 key=f"run-{jobs[i].world.name}-{jobs[i].config}-{jobs[i].job.run_dir.name}",
                 pure=False,
@@ -171,7 +175,22 @@ def _run(base, jobs, pending, rows, out_dir, scheduler, workers, on_progress, on
                 if on_progress is not None:
                     on_progress(done, total, status=_status(future, runs, jobs, rows))
         except KeyboardInterrupt:
-            client.cancel([*simulations.values(), *runs])
+            # Running runs stop as a Ctrl-C'd run does, keeping what they computed; queued
+            # runs and simulations do not start.
+            stop.set()
+            client.cancel(list(simulations.values()))
+
+            def collect(future) -> None:
+                if future in runs:
+                    rows[runs[future]] = _collect(future, jobs[runs[future]])
+
+            waiting = {f for f in runs if runs[f] not in rows}
+            for future in wind_down(client, waiting, collect, STOP_WAIT_S):
+                planned = jobs[runs[future]]  # cut off while writing: its numbers came first
+                if metrics := written_metrics(planned.job.run_dir):
+                    rows[runs[future]] = _row(
+                        planned, RunStatus.INTERRUPTED, "interrupted", metrics
+                    )
             raise
 
 
