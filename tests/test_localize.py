@@ -83,6 +83,21 @@ def test_it_recovers_after_a_kidnapping():
     assert errors[0] > 2.0 and np.all(np.array(errors[-8:]) < 0.3)
 
 
+def test_scouts_find_the_pose_a_confident_start_missed():
+    """A start 2.5 m off down the corridor with a tight cloud: no particle near the truth,
+    and the likelihood as poor from the first scan on, so augmented MCL never injects. The
+    scouts searching around the estimate find where the scans fit, and the filter moves.
+    Measured over 4 seeds: recovered in 4; without scouts, in 1 (by a chance injection)."""
+    world, rng = l_world(), np.random.default_rng(5)
+    settings = LocalizeConfig(seed=2)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
+    truth = np.column_stack([5.0 + 0.12 * np.arange(50), np.full(50, 1.25), np.zeros(50)])
+    mcl.start_tracking(truth[0] - [2.5, 0.0, 0.0], [0.1, 0.1, np.radians(3.0)])
+    errors = walk(world, truth, mcl, rng)
+    assert errors[0] > 2.0
+    assert np.all(errors[-8:] < 0.3), errors
+
+
 def share_near(mcl: MonteCarloLocalizer, pose: np.ndarray) -> float:
     """The particles' weight within 0.5 m and 20 degrees of ``pose``."""
     d = mcl.particles - pose

@@ -2,7 +2,9 @@
 field, resample (low-variance), adapt the particle count (KLD), recover from kidnapping by
 injecting particles when the likelihood collapses (augmented MCL). Particles placed for a
 global start, and injected ones, are drawn where the current scan fits (mixture MCL's dual
-sampling), not uniformly.
+sampling, ``sampling.py``), not uniformly. Scouts (``scouts.py``) search around the estimate
+and take over when they explain the scans clearly better, for a cloud that went wrong so early
+that augmented MCL, comparing it with its own past, cannot tell.
 
 Everything is numpy over particles (and particles x points in the likelihood field); the only
 loops are over filter steps.
@@ -15,6 +17,8 @@ import numpy as np
 from smokyslam.config import LocalizeConfig
 from smokyslam.geometry import se2_compose, wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
+from smokyslam.localize.sampling import low_variance, where_the_scan_fits
+from smokyslam.localize.scouts import Scouts
 
 KLD_Z = 2.33
 """The upper normal quantile of KLD's bound (1 - delta = 0.99)."""
@@ -39,8 +43,12 @@ class MonteCarloLocalizer:
         self._rng = np.random.default_rng(settings.seed)
         self.particles = np.zeros((0, 3))
         self.weights = np.zeros(0)
-        self._w_slow = self._w_fast = 0.0
+        self._w_slow = self._w_fast = self._w_mode = 0.0
         self._place_on_first_scan = False
+        scout_rng = np.random.default_rng([settings.seed, 1])  # the filter's own draws unchanged
+        self.scouts = Scouts(
+            field, settings.min_particles, settings.points_weight, settings.alpha_fast, scout_rng
+        )
 
     # ------------------------------------------------------------------ start
 
@@ -64,19 +72,12 @@ class MonteCarloLocalizer:
         return np.column_stack([picks + jitter, yaw])
 
     def _likely_particles(self, n: int, points_xy: np.ndarray) -> np.ndarray:
-        """(n, 3) poses drawn where the scan fits: ``global_candidates`` x n uniform poses,
-        resampled in proportion to the (tempered) likelihood of ``points_xy`` (mixture MCL's
-        dual sampling: a wrong place has little chance of being drawn, while the true one,
-        which uniform sampling hits only once in many thousand draws, is drawn often)."""
+        """(n, 3) poses drawn where the scan fits, from ``global_candidates`` x n uniform
+        poses (mixture MCL's dual sampling)."""
         candidates = self._random_particles(n * self.settings.global_candidates)
-        log_l = self.field.log_likelihood(candidates, points_xy) * self.settings.points_weight
-        weights = np.exp(log_l - log_l.max())
-        return candidates[self._systematic(weights / weights.sum(), n)]
-
-    def _systematic(self, weights: np.ndarray, n: int) -> np.ndarray:
-        """(n,) indices drawn by low-variance resampling of normalised ``weights``."""
-        steps = (self._rng.uniform(0.0, 1.0 / n) + np.arange(n) / n).clip(max=1.0 - 1e-12)
-        return np.minimum(np.searchsorted(np.cumsum(weights), steps), len(weights) - 1)
+        return where_the_scan_fits(
+            candidates, self.field, points_xy, self.settings.points_weight, n, self._rng
+        )
 
     def _set(self, particles: np.ndarray) -> None:
         self.particles = particles
@@ -91,6 +92,7 @@ class MonteCarloLocalizer:
         noise = self._rng.multivariate_normal(np.zeros(3), cov, len(self.particles))
         self.particles = se2_compose(self.particles, np.asarray(delta, float) + noise)
         self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        self.scouts.predict(np.asarray(delta, float), cov)
 
     def update(self, points_xy: np.ndarray) -> None:
         """Weigh by the (N, 2) base-frame radar points, then resample."""
@@ -116,6 +118,16 @@ class MonteCarloLocalizer:
         self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
         inject = max(0.0, 1.0 - self._w_fast / self._w_slow) if self._w_slow else 0.0
         inject = inject if inject >= INJECT_FLOOR else 0.0
+        # Scouts search near the main mode, and are weighed against it (not the whole cloud,
+        # which may rightly hold other modes).
+        mode, near = self._main_mode()
+        per_point = np.exp(raw[near] / len(points_xy))
+        mode_l = float(self.weights[near] @ per_point / self.weights[near].sum())
+        self._w_mode += s.alpha_fast * (mode_l - self._w_mode) if self._w_mode else mode_l
+        if self.scouts.update(points_xy, mode, self._w_mode):
+            self._set(self.scouts.take(len(self.particles)))  # they found a better place
+            self._w_mode = 0.0
+            return
         # Resample only when the weights have degenerated (or particles are to be injected):
         # resampling every frame lets chance alone pick between equally good hypotheses.
         ess = 1.0 / float(np.sum(self.weights**2))
@@ -128,7 +140,7 @@ class MonteCarloLocalizer:
         # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
-        particles = self.particles[self._systematic(self.weights, n)]
+        particles = self.particles[low_variance(self.weights, n, self._rng)]
         fresh = self._rng.uniform(size=n) < inject
         if fresh.any():
             particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
@@ -164,16 +176,20 @@ class MonteCarloLocalizer:
         heaviest KLD bin's mean; the mean of a cloud split between places lies in neither.
         """
         mean = self._weighted_mean(self.particles, self.weights)
+        mode, _ = self._main_mode()
+        d = self.particles - mean
+        d[:, 2] = wrap_angle(d[:, 2])
+        return mode, (d * self.weights[:, None]).T @ d
+
+    def _main_mode(self) -> tuple[np.ndarray, np.ndarray]:
+        """((3,) weighted mean of the main mode, (P,) bool: the particles in it)."""
         seed = self._weighted_mean(*self._heaviest_bin())
         d = self.particles - seed
         d[:, 2] = wrap_angle(d[:, 2])
         near = (np.hypot(d[:, 0], d[:, 1]) < MODE_RADIUS_M) & (np.abs(d[:, 2]) < MODE_RADIUS_RAD)
-        mode = seed
-        if near.any():
-            mode = self._weighted_mean(self.particles[near], self.weights[near])
-        d = self.particles - mean
-        d[:, 2] = wrap_angle(d[:, 2])
-        return mode, (d * self.weights[:, None]).T @ d
+        if not near.any():
+            return seed, np.ones(len(self.particles), dtype=bool)
+        return self._weighted_mean(self.particles[near], self.weights[near]), near
 
     def _heaviest_bin(self) -> tuple[np.ndarray, np.ndarray]:
         """The particles and weights of the KLD bin holding the most weight."""

@@ -1,0 +1,112 @@
+"""Scouts: a small second particle set that searches around the localizer's estimate.
+
+Augmented MCL notices a lost filter by comparing how well its particles explain the scans
+now with how well they did before. A cloud that settled in the wrong place within its first
+scans (a start a metre off, beside a stretch of corridor that fits as well for a moment) was
+never better, so nothing is noticed, and no particle is left where the true pose is.
+
+Scouts are drawn where the current scan fits within ``SEARCH_RADIUS_M`` and
+``SEARCH_RADIUS_RAD`` of the estimate, move with the same odometry and are weighed by the
+same likelihood, but never count for the estimate. When they explain the points
+``BETTER_BY`` times better than the particles do (short averages of the per-point
+likelihood) for ``PERSIST_FRAMES`` frames in a row, the localizer takes them as its
+particles. In the right place the best fit near the estimate is the estimate itself, so
+scouts do no better than the particles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smokyslam.geometry import se2_compose, wrap_angle
+from smokyslam.localize.likelihood import LikelihoodField
+from smokyslam.localize.sampling import low_variance, where_the_scan_fits
+
+SEARCH_RADIUS_M = 4.0
+SEARCH_RADIUS_RAD = np.radians(30.0)
+CANDIDATES_PER_SCOUT = 20
+REFRESH = 0.3
+"""Share of the scouts drawn anew, where the scan fits, each time they are resampled."""
+BETTER_BY = 1.5
+PERSIST_FRAMES = 10
+
+
+class Scouts:
+    """Verbs: :meth:`predict` with each odometry step, :meth:`update` with each scan."""
+
+    def __init__(
+        self,
+        field: LikelihoodField,
+        count: int,
+        points_weight: float,
+        alpha_fast: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.field = field
+        self._count, self._points_weight, self._alpha = count, points_weight, alpha_fast
+        self._rng = rng
+        self.particles = np.zeros((0, 3))
+        self.weights = np.zeros(0)
+        self._w_fast = 0.0
+        self._better_frames = 0
+
+    def predict(self, delta: np.ndarray, covariance: np.ndarray) -> None:
+        """Move by the odometry step ``delta`` with its (3, 3) ``covariance`` (as scaled for
+        the particles)."""
+        if len(self.particles):
+            noise = self._rng.multivariate_normal(np.zeros(3), covariance, len(self.particles))
+            self.particles = se2_compose(self.particles, delta + noise)
+            self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+
+    def update(self, points_xy: np.ndarray, estimate: np.ndarray, w_particles: float) -> bool:
+        """Weigh by ``points_xy``; True when the scouts have explained the points better than
+        the particles (``w_particles``, their short average) for long enough."""
+        if not len(self.particles):
+            self._set(self._draw(self._count, points_xy, estimate))
+        raw = self.field.log_likelihood(self.particles, points_xy)
+        mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
+        self._w_fast += self._alpha * (mean_l - self._w_fast) if self._w_fast else mean_l
+        log_l = raw * self._points_weight
+        weights = self.weights * np.exp(log_l - log_l.max())
+        self.weights = weights / weights.sum()
+        if 1.0 / float(np.sum(self.weights**2)) < 0.5 * len(self.weights):
+            self._resample(points_xy, estimate)
+        better = w_particles > 0 and self._w_fast > BETTER_BY * w_particles
+        self._better_frames = self._better_frames + 1 if better else 0
+        return self._better_frames >= PERSIST_FRAMES
+
+    def take(self, n: int) -> np.ndarray:
+        """(n, 3) particles drawn from the scouts by weight; the scouts start over."""
+        taken = self.particles[low_variance(self.weights, n, self._rng)].copy()
+        self.particles, self.weights = np.zeros((0, 3)), np.zeros(0)
+        self._w_fast, self._better_frames = 0.0, 0
+        return taken
+
+    def _resample(self, points_xy: np.ndarray, estimate: np.ndarray) -> None:
+        n = len(self.particles)
+        kept = self.particles[low_variance(self.weights, n, self._rng)]
+        fresh = self._rng.uniform(size=n) < REFRESH
+        if fresh.any():
+            kept[fresh] = self._draw(int(fresh.sum()), points_xy, estimate)
+        self._set(kept)
+
+    def _draw(self, n: int, points_xy: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """(n, 3) poses near ``estimate`` drawn where the scan fits."""
+        m = n * CANDIDATES_PER_SCOUT
+        radius = SEARCH_RADIUS_M * np.sqrt(self._rng.uniform(size=m))
+        bearing = self._rng.uniform(-np.pi, np.pi, m)
+        candidates = np.column_stack(
+            [
+                estimate[0] + radius * np.cos(bearing),
+                estimate[1] + radius * np.sin(bearing),
+                estimate[2] + self._rng.uniform(-SEARCH_RADIUS_RAD, SEARCH_RADIUS_RAD, m),
+            ]
+        )
+        return where_the_scan_fits(
+            candidates, self.field, points_xy, self._points_weight, n, self._rng
+        )
+
+    def _set(self, particles: np.ndarray) -> None:
+        self.particles = particles
+        self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        self.weights = np.full(len(particles), 1.0 / len(particles))
