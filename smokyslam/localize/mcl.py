@@ -46,9 +46,7 @@ class MonteCarloLocalizer:
         self._w_slow = self._w_fast = self._w_mode = 0.0
         self._place_on_first_scan = False
         scout_rng = np.random.default_rng([settings.seed, 1])  # the filter's own draws unchanged
-        self.scouts = Scouts(
-            field, settings.min_particles, settings.points_weight, settings.alpha_fast, scout_rng
-        )
+        self.scouts = Scouts(field, settings.points_weight, settings.alpha_fast, scout_rng)
 
     # ------------------------------------------------------------------ start
 

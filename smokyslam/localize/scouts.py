@@ -22,6 +22,8 @@ from smokyslam.geometry import se2_compose, wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
 from smokyslam.localize.sampling import low_variance, where_the_scan_fits
 
+COUNT = 200
+"""Scouts (a converged tracking cloud's size: KLD's usual lower bound)."""
 SEARCH_RADIUS_M = 4.0
 SEARCH_RADIUS_RAD = np.radians(30.0)
 CANDIDATES_PER_SCOUT = 20
@@ -37,13 +39,12 @@ class Scouts:
     def __init__(
         self,
         field: LikelihoodField,
-        count: int,
         points_weight: float,
         alpha_fast: float,
         rng: np.random.Generator,
     ) -> None:
         self.field = field
-        self._count, self._points_weight, self._alpha = count, points_weight, alpha_fast
+        self._points_weight, self._alpha = points_weight, alpha_fast
         self._rng = rng
         self.particles = np.zeros((0, 3))
         self.weights = np.zeros(0)
@@ -62,7 +63,7 @@ class Scouts:
         """Weigh by ``points_xy``; True when the scouts have explained the points better than
         the particles (``w_particles``, their short average) for long enough."""
         if not len(self.particles):
-            self._set(self._draw(self._count, points_xy, estimate))
+            self._set(self._draw(COUNT, points_xy, estimate))
         raw = self.field.log_likelihood(self.particles, points_xy)
         mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
         self._w_fast += self._alpha * (mean_l - self._w_fast) if self._w_fast else mean_l
