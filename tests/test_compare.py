@@ -11,13 +11,20 @@ import pytest
 from test_rerun_recorder import rows_per_entity
 
 from smokyslam.config import load_config
-from smokyslam.errors import ConfigError, EstimationError, LogError, OutputError
+from smokyslam.errors import (
+    ConfigError,
+    EstimationError,
+    LogError,
+    OutputError,
+    RunInterruptedError,
+)
 from smokyslam.evaluation.compare_plot import run_paths
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
 from smokyslam.evaluation.trajectory_io import write_tum
 from smokyslam.pipelines import jobs as jobs_module
 from smokyslam.pipelines.compare import compare, parse_smoke_levels, parse_sources
 from smokyslam.pipelines.jobs import CompareJob, run_job, run_jobs
+from smokyslam.pipelines.run import run_log
 from smokyslam.smoke import SmokeLevel
 
 HEADER = [
@@ -298,31 +305,46 @@ def test_compare_runs_on_an_existing_dask_scheduler(office_log, tmp_path):
     assert prefixes == ["run-dead-reckoning"]  # the run was a task of that cluster
 
 
-def test_a_stopped_batch_keeps_what_its_runs_computed(office_log, tmp_path):
-    from dask.distributed import Client, Event, LocalCluster
+def test_a_stopped_run_keeps_what_it_computed(office_log, tmp_path):
+    asked = []
+
+    def should_stop() -> bool:  # what a batch's StopFlag answers once its Event is set
+        asked.append(True)
+        return len(asked) > 400
+
+    with pytest.raises(RunInterruptedError):
+        run_log(office_log, "radar", load_config(), tmp_path / "radar", should_stop=should_stop)
+    metrics = json.loads((tmp_path / "radar" / "metrics.json").read_text())
+    assert metrics["interrupted"] is True and 0 < metrics["trajectory"]["frames"] < 301
+    assert len(np.loadtxt(tmp_path / "radar" / "trajectory.tum")) == metrics["trajectory"]["frames"]
+
+
+def _flag_seen(name: str) -> tuple[bool, bool]:
+    """In a task: the batch's flag before and after the Event is set (from inside)."""
+    from dask.distributed import Event
+
+    from smokyslam.pipelines.executor import StopFlag
+
+    flag = StopFlag(name)
+    before = flag()
+    Event(name).set()
+    time.sleep(0.3)  # the flag asks the scheduler at most every 0.2 s
+    return before, flag()
+
+
+def test_a_batch_s_stop_flag_reaches_its_tasks_and_queued_jobs_do_not_start(office_log, tmp_path):
+    from dask.distributed import Client, LocalCluster
 
     from smokyslam.pipelines.executor import new_stop_name
 
-    level = SmokeLevel("0", "0")
     stop = new_stop_name()
-    job = CompareJob("radar", level, office_log, load_config(), tmp_path / "radar", stop)
+    job = CompareJob("radar", SmokeLevel("0", "0"), office_log, load_config(), tmp_path / "r", stop)
     with (
         LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster,
         Client(cluster) as client,
     ):
-        event = Event(stop, client=client)
-        running = client.submit(run_job, job, pure=False)
-        deadline = time.monotonic() + 60
-        while not (job.run_dir / "config.yaml").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        time.sleep(1.0)  # under way
-        event.set()
-        row = running.result(timeout=30)
-        # A job of a batch stopped before it began does not start (no folder).
-        later = CompareJob("radar", level, office_log, load_config(), tmp_path / "later", stop)
-        never = client.submit(run_job, later, pure=False).result(timeout=30)
-    assert (row.status, row.error) == ("interrupted", "interrupted")
-    metrics = json.loads((job.run_dir / "metrics.json").read_text())
-    assert metrics["interrupted"] is True and 0 < metrics["trajectory"]["frames"] < 301
+        seen = client.submit(_flag_seen, stop, pure=False).result(timeout=30)
+        never = client.submit(run_job, job, pure=False).result(timeout=30)
+    assert seen == (False, True)
     assert (never.status, never.error) == ("interrupted", "not run")
-    assert not later.run_dir.exists()
+    assert not job.run_dir.exists()
