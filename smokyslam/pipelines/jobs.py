@@ -169,22 +169,28 @@ def _gather(client, jobs: Sequence[CompareJob], stop_name: str, finished: Callab
         for i, job in enumerate(jobs)
     }
     pending = set(futures)
+
+    def collect(future) -> None:
+        pending.discard(future)
+        finished(futures[future], _row(future, jobs[futures[future]]))
+
     try:
         for future in as_completed(futures):
-            pending.discard(future)
-            finished(futures[future], _row(future, jobs[futures[future]]))
+            collect(future)
     except KeyboardInterrupt:
         stop.set()  # running runs keep what they computed; queued ones do not start
-
-        def collect(future) -> None:
-            finished(futures[future], _row(future, jobs[futures[future]]))
-
         for future in wind_down(client, pending, collect, STOP_WAIT_S):
-            job = jobs[futures[future]]  # cut off while writing: its numbers came first
-            metrics = written_metrics(job.run_dir)
-            finished(futures[future], _stopped(job, metrics) if metrics else _not_run(job))
+            job = jobs[futures[future]]
+            finished(futures[future], cut_off_row(job) or _not_run(job))
         return True
     return False
+
+
+def cut_off_row(job: CompareJob) -> CompareRow | None:
+    """The ``interrupted`` row of a run ended while it wrote its outputs (its numbers come
+    first), or None if it had written none."""
+    metrics = written_metrics(job.run_dir)
+    return _stopped(job, metrics) if metrics else None
 
 
 def _stopped(job: CompareJob, metrics: dict) -> CompareRow:

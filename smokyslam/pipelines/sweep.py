@@ -14,9 +14,7 @@ the results do not depend on it.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import json
 import logging
 import time
 from collections.abc import Callable
@@ -27,7 +25,7 @@ from smokyslam.config import SmokySlamConfig, write_config
 from smokyslam.errors import RunInterruptedError, SmokySlamError
 from smokyslam.evaluation.compare_table import CompareRow, RunStatus
 from smokyslam.pipelines.executor import dask_client, new_stop_name, wind_down
-from smokyslam.pipelines.jobs import STOP_WAIT_S, CompareJob, written_metrics
+from smokyslam.pipelines.jobs import STOP_WAIT_S, CompareJob, cut_off_row, written_metrics
 from smokyslam.sweep.plots import plot_ate_by_source, plot_fused_vs_best
 from smokyslam.sweep.results import SweepRow, write_csv, write_summary
 from smokyslam.sweep.spec import Sweep, World, load_sweep
@@ -80,10 +78,9 @@ def plan(spec: Sweep, out_dir: Path) -> list[SweepJob]:
 
 def finished(run_dir: Path) -> dict | None:
     """The metrics of a run that finished (not interrupted), else None."""
-    with contextlib.suppress(OSError, ValueError):
-        metrics = json.loads((run_dir / "metrics.json").read_text())
-        if "realtime_factor" in metrics and not metrics.get("interrupted"):
-            return metrics
+    metrics = written_metrics(run_dir)
+    if "realtime_factor" in metrics and not metrics.get("interrupted"):
+        return metrics
     return None
 
 
@@ -186,11 +183,9 @@ def _run(base, jobs, pending, rows, out_dir, scheduler, workers, on_progress, on
 
             waiting = {f for f in runs if runs[f] not in rows}
             for future in wind_down(client, waiting, collect, STOP_WAIT_S):
-                planned = jobs[runs[future]]  # cut off while writing: its numbers came first
-                if metrics := written_metrics(planned.job.run_dir):
-                    rows[runs[future]] = _row(
-                        planned, RunStatus.INTERRUPTED, "interrupted", metrics
-                    )
+                planned = jobs[runs[future]]
+                if (row := cut_off_row(planned.job)) is not None:
+                    rows[runs[future]] = SweepRow(planned.world, planned.config, row)
             raise
 
 

@@ -46,7 +46,7 @@ def _alive(pid: int) -> bool:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except PermissionError:  # alive, as another user's process (the pid was reused)
+    except PermissionError:  # another user's process holds the pid now: the parent is gone
         return False
     return True
 

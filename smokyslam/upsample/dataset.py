@@ -21,7 +21,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import multiprocessing
 import os
 import tempfile
 from collections.abc import Callable, Sequence
@@ -176,7 +175,9 @@ def build_pairs(
             if on_world:
                 on_world(len(paths))
     if todo and jobs > 1:
-        context = multiprocessing.get_context("spawn")  # torch/gtsam threads and fork: no
+        from smokyslam.pipelines.worker_process import worker_context
+
+        context = worker_context()  # the run's workers' start: Ctrl-C left to this process
         with ProcessPoolExecutor(
             min(jobs, len(todo)), context, initializer=_init_worker, initargs=(os.getpid(),)
         ) as pool:
