@@ -15,9 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from smokyslam.config import LocalizeConfig
-from smokyslam.geometry import se2_compose, wrap_angle
+from smokyslam.geometry import wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.sampling import low_variance, where_the_scan_fits
+from smokyslam.localize.particles import ParticleSet, weighted_mean
+from smokyslam.localize.sampling import where_the_scan_fits
 from smokyslam.localize.scouts import Scouts
 
 KLD_Z = 2.33
@@ -41,12 +42,22 @@ class MonteCarloLocalizer:
         self.field = field
         self.settings = settings
         self._rng = np.random.default_rng(settings.seed)
-        self.particles = np.zeros((0, 3))
-        self.weights = np.zeros(0)
+        self.set = ParticleSet()
         self._w_slow = self._w_fast = self._w_mode = 0.0
         self._place_on_first_scan = False
+        self._mode_cache: tuple[int, tuple[np.ndarray, np.ndarray]] | None = None
         scout_rng = np.random.default_rng([settings.seed, 1])  # the filter's own draws unchanged
-        self.scouts = Scouts(field, settings.points_weight, settings.alpha_fast, scout_rng)
+        self.scouts = Scouts(field, settings, scout_rng)
+
+    @property
+    def particles(self) -> np.ndarray:
+        """(P, 3) the particles' poses in the map (x m, y m, yaw rad)."""
+        return self.set.poses
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(P,) their normalised weights."""
+        return self.set.weights
 
     # ------------------------------------------------------------------ start
 
@@ -54,12 +65,12 @@ class MonteCarloLocalizer:
         """Particles around (3,) ``pose`` with (3,) ``sigmas`` (m, m, rad)."""
         n = self.settings.max_particles
         noise = self._rng.normal(0.0, 1.0, (n, 3)) * np.asarray(sigmas, dtype=float)
-        self._set(np.asarray(pose, dtype=float) + noise)
+        self.set.reset(np.asarray(pose, dtype=float) + noise)
 
     def start_global(self) -> None:
         """Particles spread over the map's free cells, any heading; the first
         :meth:`update` draws them again where its scan fits (see :meth:`_likely_particles`)."""
-        self._set(self._random_particles(self.settings.max_particles))
+        self.set.reset(self._random_particles(self.settings.max_particles))
         self._place_on_first_scan = True
 
     def _random_particles(self, n: int) -> np.ndarray:
@@ -77,19 +88,12 @@ class MonteCarloLocalizer:
             candidates, self.field, points_xy, self.settings.points_weight, n, self._rng
         )
 
-    def _set(self, particles: np.ndarray) -> None:
-        self.particles = particles
-        self.particles[:, 2] = wrap_angle(self.particles[:, 2])
-        self.weights = np.full(len(particles), 1.0 / len(particles))
-
     # ------------------------------------------------------------------ per frame
 
     def predict(self, delta: np.ndarray, covariance: np.ndarray) -> None:
         """Move every particle by the odometry step (3,) with its (3, 3) covariance."""
         cov = np.asarray(covariance, dtype=float) * self.settings.motion_scale
-        noise = self._rng.multivariate_normal(np.zeros(3), cov, len(self.particles))
-        self.particles = se2_compose(self.particles, np.asarray(delta, float) + noise)
-        self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        self.set.move(delta, cov, self._rng)
         self.scouts.predict(np.asarray(delta, float), cov)
 
     def update(self, points_xy: np.ndarray) -> None:
@@ -98,19 +102,9 @@ class MonteCarloLocalizer:
             return
         if self._place_on_first_scan:
             self._place_on_first_scan = False
-            self._set(self._likely_particles(len(self.particles), points_xy))
-        raw = self.field.log_likelihood(self.particles, points_xy)
-        log_l = raw * self.settings.points_weight
-        likelihood = np.exp(log_l - log_l.max())
-        weights = self.weights * likelihood
-        total = weights.sum()
-        # Augmented MCL: short and long averages of how well the particles explain a point
-        # (the weighted mean of each particle's per-point geometric-mean likelihood, before
-        # the tempering exponent), so they depend neither on the points' count nor on it.
-        mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
-        if not np.isfinite(total) or total <= 0:
-            weights, total = np.ones(len(weights)), float(len(weights))
-        self.weights = weights / total
+            self.set.reset(self._likely_particles(len(self.set), points_xy))
+        # Augmented MCL: short and long averages of how well the particles explain a point.
+        raw, mean_l = self.set.weigh(self.field, points_xy, self.settings.points_weight)
         s = self.settings
         self._w_slow += s.alpha_slow * (mean_l - self._w_slow) if self._w_slow else mean_l
         self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
@@ -123,13 +117,12 @@ class MonteCarloLocalizer:
         mode_l = float(self.weights[near] @ per_point / self.weights[near].sum())
         self._w_mode += s.alpha_fast * (mode_l - self._w_mode) if self._w_mode else mode_l
         if self.scouts.update(points_xy, mode, self._w_mode):
-            self._set(self.scouts.take(len(self.particles)))  # they found a better place
+            self.set.reset(self.scouts.take(len(self.set)))  # they found a better place
             self._w_mode = 0.0
             return
         # Resample only when the weights have degenerated (or particles are to be injected):
         # resampling every frame lets chance alone pick between equally good hypotheses.
-        ess = 1.0 / float(np.sum(self.weights**2))
-        if inject > 0.0 or ess < s.resample_ess * len(self.weights):
+        if inject > 0.0 or self.set.degenerate(s.resample_ess):
             self._resample(inject, points_xy)
 
     def _resample(self, inject: float, points_xy: np.ndarray) -> None:
@@ -138,11 +131,11 @@ class MonteCarloLocalizer:
         # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
-        particles = self.particles[low_variance(self.weights, n, self._rng)]
+        particles = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < inject
         if fresh.any():
             particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
-        self._set(particles.copy())
+        self.set.reset(particles)
 
     def _bins(self) -> np.ndarray:
         """(P, 3) int KLD histogram bins of the particles."""
@@ -173,21 +166,27 @@ class MonteCarloLocalizer:
         The main mode: the particles within ``MODE_RADIUS_M`` and ``MODE_RADIUS_RAD`` of the
         heaviest KLD bin's mean; the mean of a cloud split between places lies in neither.
         """
-        mean = self._weighted_mean(self.particles, self.weights)
+        mean = self.set.mean()
         mode, _ = self._main_mode()
         d = self.particles - mean
         d[:, 2] = wrap_angle(d[:, 2])
         return mode, (d * self.weights[:, None]).T @ d
 
     def _main_mode(self) -> tuple[np.ndarray, np.ndarray]:
-        """((3,) weighted mean of the main mode, (P,) bool: the particles in it)."""
-        seed = self._weighted_mean(*self._heaviest_bin())
+        """((3,) weighted mean of the main mode, (P,) bool: the particles in it); found once
+        per state of the particles (``update`` and ``estimate`` both ask)."""
+        if self._mode_cache is None or self._mode_cache[0] != self.set.version:
+            self._mode_cache = (self.set.version, self._find_main_mode())
+        return self._mode_cache[1]
+
+    def _find_main_mode(self) -> tuple[np.ndarray, np.ndarray]:
+        seed = weighted_mean(*self._heaviest_bin())
         d = self.particles - seed
         d[:, 2] = wrap_angle(d[:, 2])
         near = (np.hypot(d[:, 0], d[:, 1]) < MODE_RADIUS_M) & (np.abs(d[:, 2]) < MODE_RADIUS_RAD)
         if not near.any():
             return seed, np.ones(len(self.particles), dtype=bool)
-        return self._weighted_mean(self.particles[near], self.weights[near]), near
+        return self.set.mean(near), near
 
     def _heaviest_bin(self) -> tuple[np.ndarray, np.ndarray]:
         """The particles and weights of the KLD bin holding the most weight."""
@@ -198,13 +197,6 @@ class MonteCarloLocalizer:
         keep = label == heaviest
         return self.particles[keep], self.weights[keep]
 
-    @staticmethod
-    def _weighted_mean(particles: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        w = weights / weights.sum()
-        xy = w @ particles[:, :2]
-        yaw = np.arctan2(w @ np.sin(particles[:, 2]), w @ np.cos(particles[:, 2]))
-        return np.array([xy[0], xy[1], yaw])
-
     @property
     def count(self) -> int:
-        return len(self.particles)
+        return len(self.set)

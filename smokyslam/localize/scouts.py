@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from smokyslam.geometry import se2_compose, wrap_angle
+from smokyslam.config import LocalizeConfig
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.sampling import low_variance, where_the_scan_fits
+from smokyslam.localize.particles import ParticleSet
+from smokyslam.localize.sampling import where_the_scan_fits
 
 COUNT = 200
 """Scouts (a converged tracking cloud's size: KLD's usual lower bound)."""
@@ -39,38 +40,32 @@ class Scouts:
     def __init__(
         self,
         field: LikelihoodField,
-        points_weight: float,
-        alpha_fast: float,
+        settings: LocalizeConfig,
         rng: np.random.Generator,
     ) -> None:
+        """``settings``: the localizer's per-point exponent, short-average rate and
+        resampling threshold, which the scouts share."""
         self.field = field
-        self._points_weight, self._alpha = points_weight, alpha_fast
+        self.settings = settings
         self._rng = rng
-        self.particles = np.zeros((0, 3))
-        self.weights = np.zeros(0)
+        self.set = ParticleSet()
         self._w_fast = 0.0
         self._better_frames = 0
 
     def predict(self, delta: np.ndarray, covariance: np.ndarray) -> None:
         """Move by the odometry step ``delta`` with its (3, 3) ``covariance`` (as scaled for
         the particles)."""
-        if len(self.particles):
-            noise = self._rng.multivariate_normal(np.zeros(3), covariance, len(self.particles))
-            self.particles = se2_compose(self.particles, delta + noise)
-            self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        self.set.move(delta, covariance, self._rng)
 
     def update(self, points_xy: np.ndarray, estimate: np.ndarray, w_particles: float) -> bool:
         """Weigh by ``points_xy``; True when the scouts have explained the points better than
         the particles (``w_particles``, their short average) for long enough."""
-        if not len(self.particles):
-            self._set(self._draw(COUNT, points_xy, estimate))
-        raw = self.field.log_likelihood(self.particles, points_xy)
-        mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
-        self._w_fast += self._alpha * (mean_l - self._w_fast) if self._w_fast else mean_l
-        log_l = raw * self._points_weight
-        weights = self.weights * np.exp(log_l - log_l.max())
-        self.weights = weights / weights.sum()
-        if 1.0 / float(np.sum(self.weights**2)) < 0.5 * len(self.weights):
+        s = self.settings
+        if not len(self.set):
+            self.set.reset(self._draw(COUNT, points_xy, estimate))
+        _, mean_l = self.set.weigh(self.field, points_xy, s.points_weight)
+        self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
+        if self.set.degenerate(s.resample_ess):
             self._resample(points_xy, estimate)
         better = w_particles > 0 and self._w_fast > BETTER_BY * w_particles
         self._better_frames = self._better_frames + 1 if better else 0
@@ -78,18 +73,18 @@ class Scouts:
 
     def take(self, n: int) -> np.ndarray:
         """(n, 3) particles drawn from the scouts by weight; the scouts start over."""
-        taken = self.particles[low_variance(self.weights, n, self._rng)].copy()
-        self.particles, self.weights = np.zeros((0, 3)), np.zeros(0)
+        taken = self.set.draw(n, self._rng).copy()
+        self.set = ParticleSet()
         self._w_fast, self._better_frames = 0.0, 0
         return taken
 
     def _resample(self, points_xy: np.ndarray, estimate: np.ndarray) -> None:
-        n = len(self.particles)
-        kept = self.particles[low_variance(self.weights, n, self._rng)]
+        n = len(self.set)
+        kept = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < REFRESH
         if fresh.any():
             kept[fresh] = self._draw(int(fresh.sum()), points_xy, estimate)
-        self._set(kept)
+        self.set.reset(kept)
 
     def _draw(self, n: int, points_xy: np.ndarray, estimate: np.ndarray) -> np.ndarray:
         """(n, 3) poses near ``estimate`` drawn where the scan fits."""
@@ -104,10 +99,5 @@ class Scouts:
             ]
         )
         return where_the_scan_fits(
-            candidates, self.field, points_xy, self._points_weight, n, self._rng
+            candidates, self.field, points_xy, self.settings.points_weight, n, self._rng
         )
-
-    def _set(self, particles: np.ndarray) -> None:
-        self.particles = particles
-        self.particles[:, 2] = wrap_angle(self.particles[:, 2])
-        self.weights = np.full(len(particles), 1.0 / len(particles))
