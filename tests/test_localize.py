@@ -68,6 +68,7 @@ def test_it_recovers_after_a_kidnapping():
     first = corridor_path(15, start_x=6.0)
     mcl.start_tracking(first[0], [0.1, 0.1, 0.05])
     assert walk(world, first, mcl, rng)[-1] < 0.2
+    assert mcl.p_unknown == settings.p_unknown_tracking  # tracking: unknown space may be unmapped
     # Kidnapped: carried to the far end of the other arm of the L, the odometry none the
     # wiser, walking back towards the corner. (Walking away from it, the view down an arm is
     # the view down the other: no filter could tell where it is.) Measured over 8 seeds:
@@ -81,6 +82,7 @@ def test_it_recovers_after_a_kidnapping():
         mcl.update(scan(world, second[k], rng))
         errors.append(np.hypot(*(mcl.estimate()[0][:2] - second[k, :2])))
     assert errors[0] > 2.0 and np.all(np.array(errors[-8:]) < 0.3)
+    assert mcl.p_unknown == settings.p_unknown  # the likelihood collapsed: searching since
 
 
 def test_scouts_find_the_pose_a_confident_start_missed():
@@ -111,6 +113,7 @@ def test_global_localization_finds_the_pose_with_no_start():
     settings = LocalizeConfig(seed=5)
     mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
     mcl.start_global()
+    assert mcl.p_unknown == settings.p_unknown < settings.p_unknown_tracking
     truth = corridor_path(40, start_x=3.0)
     mcl.update(scan(world, truth[0], rng))
     # Drawn where the first scan fits: far more particles near the truth than uniform
@@ -168,6 +171,9 @@ def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
     assert score["behind"] == pytest.approx(score["front"])
     assert score["on"] > score["front"] > np.log(settings.p_unknown) + 2.0
     assert score["far"] == pytest.approx(np.log(settings.p_unknown))
+    # The filter may score unknown space higher (while tracking); walls score as before.
+    far, on = (field.log_likelihood(at_origin, np.array(p), 0.3)[0] for p in (far, on))
+    assert far == pytest.approx(np.log(0.3)) and on == pytest.approx(score["on"])
 
 
 def test_the_bench_runs_the_filter_at_its_particle_count():

@@ -46,6 +46,12 @@ class LocalizeConfig(_Section):
         gt=0.0,
         description="likelihood of a point off the map, and the least of one in unknown space",
     )
+    p_unknown_tracking: float = Field(
+        0.3,
+        gt=0.0,
+        description="the same while tracking from a given start (a search keeps p_unknown):"
+        " near a trusted pose, a point in unknown space most likely hit something unmapped",
+    )
     init_sigma_m: float = Field(1.0, gt=0.0, description="tracking start: position sigma")
     init_sigma_deg: float = Field(15.0, gt=0.0, description="tracking start: heading sigma")
     converged_m: float = Field(

@@ -45,6 +45,7 @@ class MonteCarloLocalizer:
         self.set = ParticleSet()
         self._w_slow = self._w_fast = self._w_mode = 0.0
         self._place_on_first_scan = False
+        self._tracking = False
         self._mode_cache: tuple[int, tuple[np.ndarray, np.ndarray]] | None = None
         scout_rng = np.random.default_rng([settings.seed, 1])  # the filter's own draws unchanged
         self.scouts = Scouts(field, settings, scout_rng)
@@ -66,12 +67,14 @@ class MonteCarloLocalizer:
         n = self.settings.max_particles
         noise = self._rng.normal(0.0, 1.0, (n, 3)) * np.asarray(sigmas, dtype=float)
         self.set.reset(np.asarray(pose, dtype=float) + noise)
+        self._tracking = True
 
     def start_global(self) -> None:
         """Particles spread over the map's free cells, any heading; the first
         :meth:`update` draws them again where its scan fits (see :meth:`_likely_particles`)."""
         self.set.reset(self._random_particles(self.settings.max_particles))
         self._place_on_first_scan = True
+        self._tracking = False
 
     def _random_particles(self, n: int) -> np.ndarray:
         free = self.field.free_xy
@@ -104,7 +107,8 @@ class MonteCarloLocalizer:
             self._place_on_first_scan = False
             self.set.reset(self._likely_particles(len(self.set), points_xy))
         # Augmented MCL: short and long averages of how well the particles explain a point.
-        raw, mean_l = self.set.weigh(self.field, points_xy, self.settings.points_weight)
+        p_unknown = self.p_unknown
+        raw, mean_l = self.set.weigh(self.field, points_xy, self.settings.points_weight, p_unknown)
         s = self.settings
         self._w_slow += s.alpha_slow * (mean_l - self._w_slow) if self._w_slow else mean_l
         self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
@@ -116,14 +120,28 @@ class MonteCarloLocalizer:
         per_point = np.exp(raw[near] / len(points_xy))
         mode_l = float(self.weights[near] @ per_point / self.weights[near].sum())
         self._w_mode += s.alpha_fast * (mode_l - self._w_mode) if self._w_mode else mode_l
-        if self.scouts.update(points_xy, mode, self._w_mode):
+        if self.scouts.update(points_xy, mode, self._w_mode, p_unknown):
             self.set.reset(self.scouts.take(len(self.set)))  # they found a better place
             self._w_mode = 0.0
             return
         # Resample only when the weights have degenerated (or particles are to be injected):
         # resampling every frame lets chance alone pick between equally good hypotheses.
+        if inject > 0.0:
+            self._tracking = False  # the likelihood collapsed: search from now on
         if inject > 0.0 or self.set.degenerate(s.resample_ess):
             self._resample(inject, points_xy)
+
+    @property
+    def p_unknown(self) -> float:
+        """The least likelihood of a point in unknown space, now: ``p_unknown_tracking``
+        while tracking from a given start, ``p_unknown`` while searching (a global start, or
+        once the likelihood has collapsed). Near a trusted pose, a point in unknown space
+        most likely hit something the map never saw (radar sees through walls into rooms the
+        mapping walk did not enter), and scoring it low drags the cloud to wherever the map
+        happens to be complete; a search must instead tell places apart, and a wrong place
+        puts its points in unknown space outside the building."""
+        s = self.settings
+        return s.p_unknown_tracking if self._tracking else s.p_unknown
 
     def _resample(self, inject: float, points_xy: np.ndarray) -> None:
         """Low-variance resampling to the KLD count, with particles injected with

@@ -41,14 +41,18 @@ class ParticleSet:
         self.version += 1
 
     def weigh(
-        self, field: LikelihoodField, points_xy: np.ndarray, points_weight: float
+        self,
+        field: LikelihoodField,
+        points_xy: np.ndarray,
+        points_weight: float,
+        p_unknown: float | None = None,
     ) -> tuple[np.ndarray, float]:
         """Multiply the weights by the likelihood of the (N, 2) ``points_xy`` (each point's
         log-likelihood tempered by ``points_weight``). Returns ((P,) raw log-likelihoods,
         how well the set explained a point before this scan reweighed it: the weighted mean
         of each pose's per-point geometric-mean likelihood, untempered, so it depends neither
         on the points' count nor on the exponent)."""
-        raw = field.log_likelihood(self.poses, points_xy)
+        raw = field.log_likelihood(self.poses, points_xy, p_unknown)
         mean_l = float(self.weights @ np.exp(raw / len(points_xy)))
         log_l = raw * points_weight
         weights = self.weights * np.exp(log_l - log_l.max())

@@ -21,10 +21,11 @@ def where_the_scan_fits(
     points_weight: float,
     n: int,
     rng: np.random.Generator,
+    p_unknown: float | None = None,
 ) -> np.ndarray:
     """(n, 3) of the (M, 3) ``candidates``, drawn in proportion to the (tempered) likelihood
     of ``points_xy``: a wrong place has little chance of being drawn, while the right one,
     which uniform sampling hits only once in many thousand draws, is drawn often."""
-    log_l = field.log_likelihood(candidates, points_xy) * points_weight
+    log_l = field.log_likelihood(candidates, points_xy, p_unknown) * points_weight
     weights = np.exp(log_l - log_l.max())
     return candidates[low_variance(weights / weights.sum(), n, rng)]

@@ -57,16 +57,19 @@ class Scouts:
         the particles)."""
         self.set.move(delta, covariance, self._rng)
 
-    def update(self, points_xy: np.ndarray, estimate: np.ndarray, w_particles: float) -> bool:
-        """Weigh by ``points_xy``; True when the scouts have explained the points better than
-        the particles (``w_particles``, their short average) for long enough."""
+    def update(
+        self, points_xy: np.ndarray, estimate: np.ndarray, w_particles: float, p_unknown: float
+    ) -> bool:
+        """Weigh by ``points_xy`` (unknown space scored as the filter now scores it,
+        ``p_unknown``); True when the scouts have explained the points better than the
+        particles (``w_particles``, their short average) for long enough."""
         s = self.settings
         if not len(self.set):
-            self.set.reset(self._draw(COUNT, points_xy, estimate))
-        _, mean_l = self.set.weigh(self.field, points_xy, s.points_weight)
+            self.set.reset(self._draw(COUNT, points_xy, estimate, p_unknown))
+        _, mean_l = self.set.weigh(self.field, points_xy, s.points_weight, p_unknown)
         self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
         if self.set.degenerate(s.resample_ess):
-            self._resample(points_xy, estimate)
+            self._resample(points_xy, estimate, p_unknown)
         better = w_particles > 0 and self._w_fast > BETTER_BY * w_particles
         self._better_frames = self._better_frames + 1 if better else 0
         return self._better_frames >= PERSIST_FRAMES
@@ -78,15 +81,17 @@ class Scouts:
         self._w_fast, self._better_frames = 0.0, 0
         return taken
 
-    def _resample(self, points_xy: np.ndarray, estimate: np.ndarray) -> None:
+    def _resample(self, points_xy: np.ndarray, estimate: np.ndarray, p_unknown: float) -> None:
         n = len(self.set)
         kept = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < REFRESH
         if fresh.any():
-            kept[fresh] = self._draw(int(fresh.sum()), points_xy, estimate)
+            kept[fresh] = self._draw(int(fresh.sum()), points_xy, estimate, p_unknown)
         self.set.reset(kept)
 
-    def _draw(self, n: int, points_xy: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+    def _draw(
+        self, n: int, points_xy: np.ndarray, estimate: np.ndarray, p_unknown: float
+    ) -> np.ndarray:
         """(n, 3) poses near ``estimate`` drawn where the scan fits."""
         m = n * CANDIDATES_PER_SCOUT
         radius = SEARCH_RADIUS_M * np.sqrt(self._rng.uniform(size=m))
@@ -99,5 +104,11 @@ class Scouts:
             ]
         )
         return where_the_scan_fits(
-            candidates, self.field, points_xy, self.settings.points_weight, n, self._rng
+            candidates,
+            self.field,
+            points_xy,
+            self.settings.points_weight,
+            n,
+            self._rng,
+            p_unknown,
         )
