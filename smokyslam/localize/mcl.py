@@ -17,7 +17,7 @@ import numpy as np
 from smokyslam.config import LocalizeConfig
 from smokyslam.geometry import wrap_angle
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.particles import ParticleSet, weighted_mean
+from smokyslam.localize.particles import ParticleSet, smoothed, weighted_mean
 from smokyslam.localize.sampling import where_the_scan_fits
 from smokyslam.localize.scouts import Scouts
 
@@ -110,8 +110,8 @@ class MonteCarloLocalizer:
         p_unknown = self.p_unknown
         raw, mean_l = self.set.weigh(self.field, points_xy, self.settings.points_weight, p_unknown)
         s = self.settings
-        self._w_slow += s.alpha_slow * (mean_l - self._w_slow) if self._w_slow else mean_l
-        self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
+        self._w_slow = smoothed(self._w_slow, mean_l, s.alpha_slow)
+        self._w_fast = smoothed(self._w_fast, mean_l, s.alpha_fast)
         inject = max(0.0, 1.0 - self._w_fast / self._w_slow) if self._w_slow else 0.0
         inject = inject if inject >= INJECT_FLOOR else 0.0
         # Scouts search near the main mode, and are weighed against it (not the whole cloud,
@@ -119,7 +119,7 @@ class MonteCarloLocalizer:
         mode, near = self._main_mode()
         per_point = np.exp(raw[near] / len(points_xy))
         mode_l = float(self.weights[near] @ per_point / self.weights[near].sum())
-        self._w_mode += s.alpha_fast * (mode_l - self._w_mode) if self._w_mode else mode_l
+        self._w_mode = smoothed(self._w_mode, mode_l, s.alpha_fast)
         if self.scouts.update(points_xy, mode, self._w_mode, p_unknown):
             self.set.reset(self.scouts.take(len(self.set)))  # they found a better place
             self._w_mode = 0.0

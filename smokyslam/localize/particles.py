@@ -85,3 +85,9 @@ def weighted_mean(poses: np.ndarray, weights: np.ndarray) -> np.ndarray:
     xy = w @ poses[:, :2]
     yaw = np.arctan2(w @ np.sin(poses[:, 2]), w @ np.cos(poses[:, 2]))
     return np.array([xy[0], xy[1], yaw])
+
+
+def smoothed(average: float, value: float, rate: float) -> float:
+    """An exponential moving average moved towards ``value`` at ``rate``; it starts at the
+    first value (an average of 0 is one not started)."""
+    return average + rate * (value - average) if average else value

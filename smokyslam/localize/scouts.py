@@ -20,7 +20,7 @@ import numpy as np
 
 from smokyslam.config import LocalizeConfig
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.particles import ParticleSet
+from smokyslam.localize.particles import ParticleSet, smoothed
 from smokyslam.localize.sampling import where_the_scan_fits
 
 COUNT = 200
@@ -67,7 +67,7 @@ class Scouts:
         if not len(self.set):
             self.set.reset(self._draw(COUNT, points_xy, estimate, p_unknown))
         _, mean_l = self.set.weigh(self.field, points_xy, s.points_weight, p_unknown)
-        self._w_fast += s.alpha_fast * (mean_l - self._w_fast) if self._w_fast else mean_l
+        self._w_fast = smoothed(self._w_fast, mean_l, s.alpha_fast)
         if self.set.degenerate(s.resample_ess):
             self._resample(points_xy, estimate, p_unknown)
         better = w_particles > 0 and self._w_fast > BETTER_BY * w_particles
