@@ -23,6 +23,8 @@ from smokyslam.cli.options import (
 )
 from smokyslam.errors import ConfigError
 
+DENSIFY = ("auto", "always", "never")
+
 
 def parse_pose(text: str, option: str) -> np.ndarray:
     """``x,y,yaw`` (metres, metres, degrees) as (3,) [x_m, y_m, yaw_rad]."""
@@ -58,6 +60,13 @@ def localize(
         bool,
         typer.Option("--global", help="Global localization: no initial pose (the default)."),
     ] = False,
+    densify: Annotated[
+        str | None,
+        typer.Option(
+            help="Up-sample the map before localizing in it: auto (a map as sparse as a "
+            "stitched radar map; the default), always, never.",
+        ),
+    ] = None,
     smoke: SmokeOption = None,
     rerun: RerunOption = None,
     rerun_spawn: RerunSpawnOption = False,
@@ -68,6 +77,10 @@ def localize(
     """Find the rig in a saved map along a log: trajectory.tum (map frame), metrics.json
     (errors against ground truth, time to converge, particle counts), localization.png."""
     cfg = effective_config(config, smoke_overrides(smoke), calibration)
+    if densify is not None:
+        if densify not in DENSIFY:
+            raise ConfigError(f"--densify must be one of {', '.join(DENSIFY)}, got '{densify}'")
+        cfg.localize.densify = densify
     if sum(x is not None for x in (init, init_offset)) + global_ > 1:
         raise ConfigError("give one of --init, --init-offset and --global")
     if not map_yaml.is_file():

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field, model_validator
 
 from smokyslam.config.base import Section as _Section
@@ -62,6 +64,18 @@ class LocalizeConfig(_Section):
     )
     settle_s: float = Field(
         5.0, ge=0.0, description="errors after this many seconds are reported apart"
+    )
+    densify: Literal["auto", "always", "never"] = Field(
+        "auto",
+        description="up-sample the map with the shipped generator before localizing in it"
+        " (auto: a map as sparse as a stitched radar map; localize/map_prior.py)",
+    )
+    densify_isolated: float = Field(
+        0.15,
+        ge=0.0,
+        le=1.0,
+        description="auto: densify when at least this share of the occupied cells have no"
+        " occupied neighbour (sparse radar maps 0.24-0.46, others at most 0.08)",
     )
     seed: int = Field(0, description="the filter's random numbers")
 

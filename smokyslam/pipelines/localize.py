@@ -1,7 +1,8 @@
 """``smokyslam localize``: find the rig in a saved map, with the run loop's radar stages.
 
 The table of contents of :func:`localize_log`: claim the output folder and write the
-effective config; load the map and build its likelihood field; open the log; resolve the
+effective config; load the map (up-sampled first when it is as sparse as a stitched radar
+map, ``localize/map_prior.py``) and build its likelihood field; open the log; resolve the
 start (a pose, a pose offset from the truth, or none: global); run the one loop with the
 radar source's stages plus the localizer; write ``trajectory.tum`` (map frame, the log's
 clock), ``metrics.json`` and ``localization.png``; finish the recording.
@@ -26,6 +27,7 @@ from smokyslam.frontends.readers.registry import config_for_log, open_log
 from smokyslam.geometry import interpolate_se2, se2_compose
 from smokyslam.localize.evaluation import localization_metrics
 from smokyslam.localize.likelihood import LikelihoodField
+from smokyslam.localize.map_prior import localization_map
 from smokyslam.localize.mcl import MonteCarloLocalizer
 from smokyslam.localize.plot import plot_localization
 from smokyslam.localize.stage import LocalizationTrack, Localizer, LocalizeStart
@@ -74,7 +76,8 @@ def localize_log(
     config = config_for_log(log_path, config).model_copy(deep=True)
     config.upsample.method = "none"  # the localizer needs no dense map of the new walk
     saved = load_map(map_yaml)
-    field = LikelihoodField(saved.cells, saved.spec, config.localize)  # an empty map: now
+    used = localization_map(saved.cells, saved.spec, config)
+    field = LikelihoodField(used.cells, used.spec, config.localize)  # an empty map: now
     with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
         reader = open_log(log_path, config, require=get_source(SOURCE).requires)
@@ -99,8 +102,8 @@ def localize_log(
         metrics = localization_metrics(stamps_s, poses, particles, truth, config.localize)
         plot_localization(
             out.path("localization.png"),
-            saved.cells,
-            saved.spec,
+            used.cells,
+            used.spec,
             poses,
             stages.localizer.first_particles,
             mcl.particles,
@@ -118,6 +121,8 @@ def localize_log(
             {
                 "localization": {
                     "map": str(Path(map_yaml)),
+                    "map_densified": used.densified,
+                    "map_isolated_share": used.isolated_share,
                     "mode": start.mode,
                     "start": _pose_json(start.pose_map_base),
                     **metrics,
