@@ -193,3 +193,36 @@ def test_register_command_gives_one_error_line(floor, tmp_path):
         assert out.stderr.startswith("error: ") and out.stderr.count("\n") == 1, out.stderr
         assert message in out.stderr
     assert not (tmp_path / "reg" / "homography.json").exists()
+
+
+def test_paper_table_places_a_camera_map_by_the_fused_run_s_own_visual_map(floor, tmp_path):
+    """paper-table registers the camera-only map onto the fused run's radar maps and onto its
+    own visual map and keeps the most confident placement: a camera map whose walls the radar
+    maps do not show is placed by that visual map; with none, it is refused."""
+    from scipy.ndimage import binary_dilation
+
+    from smokyslam.config import SmokySlamConfig
+    from smokyslam.fusion.fuser import MapFuser
+    from smokyslam.fusion.trust import save_trust, trust_beside
+    from smokyslam.mapio import MapImage
+    from smokyslam.pipelines.paper_table import _register_and_fuse
+
+    shape = (260, 300)
+    spec = GridSpec((0.0, 0.0), 0.1, shape)
+    own_visual = MapImage(warp_cells(floor, true_warp(floor.shape, shape, 1.0, 25.0), shape), spec)
+    blobs = cv2.GaussianBlur(np.random.default_rng(1).random(shape), (0, 0), 3.0)
+    walls = np.where(blobs > np.quantile(blobs, 0.8), OCCUPIED, FREE).astype(np.int8)
+    radar = MapImage(walls, spec)  # radar maps that show none of the camera's walls
+    camera_yaml = save_map(
+        tmp_path / "visual_unaligned.yaml", floor, GridSpec((-3.0, 2.0), 0.1, floor.shape)
+    )
+    save_trust(trust_beside(camera_yaml), np.full(floor.shape, 0.6), 0.6)
+    config = SmokySlamConfig()
+    fuser = MapFuser(config.fusion)
+    placed, _, t_mean = _register_and_fuse(camera_yaml, (radar, radar, own_visual), config, fuser)
+    occupied = placed.cells == OCCUPIED
+    near = binary_dilation(own_visual.cells == OCCUPIED, np.ones((3, 3), bool))
+    assert np.count_nonzero(occupied & near) > 0.95 * np.count_nonzero(occupied)
+    assert t_mean == pytest.approx(0.6)
+    with pytest.raises(FusionError, match="with confidence"):
+        _register_and_fuse(camera_yaml, (radar, radar, None), config, fuser)

@@ -31,8 +31,12 @@ class RegistrationConfig(_Section):
     pyramid_levels: int = Field(3, ge=1, le=6, description="ECC coarse-to-fine levels (halvings)")
     ecc_iterations: int = Field(60, ge=1, description="ECC iterations at most, per level")
     ecc_eps: float = Field(1e-5, gt=0.0, description="ECC stops when rho changes less")
+    # At 0.3, of 17 confident placements of camera-only maps onto radar maps (48 runs, 16
+    # unseen worlds), 5 disagreed with the camera run's own aligned map (under 55 % of the
+    # placed walls within 0.3 m of its walls), 4 of them at overlaps of 0.29-0.38; at 0.5,
+    # 1 of 13 (overlap 0.53), and no agreeing placement was lost.
     full_overlap: float = Field(
-        0.3, gt=0.0, le=1.0, description="overlap (of the source's known cells) trusted fully"
+        0.5, gt=0.0, le=1.0, description="overlap (of the source's known cells) trusted fully"
     )
     confidence_threshold: float = Field(
         0.45, ge=0.0, le=1.0, description="a registration below this confidence is not applied"

