@@ -5,8 +5,8 @@ paper's three smoke levels (radar loss, camera noise) = (0, 0), (0.1, 0.2), (0.2
 comparison (``DIR/runs/``, in parallel); per level take the sparse and the up-sampled radar
 maps of the fused run (in the ground-truth frame), register the camera-only run's visual map
 (its own frame and scale: ``maps/visual_unaligned``) by homography onto the fused run's maps
-(sparse, up-sampled, and its own visual map: the most confident placement), fuse it with
-the up-sampled map with the trust the camera measured; score all twelve maps against the observed
+(sparse, up-sampled, and its own visual map: the most confident placement), fuse it with the
+up-sampled map by the trust the camera measured; score all twelve maps against the observed
 truth where the log has one (the paper's lidar-made truth), else the full truth; write the
 table, the maps and one figure.
 """
