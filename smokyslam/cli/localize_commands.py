@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, get_args
 
 import numpy as np
 import typer
@@ -21,9 +21,11 @@ from smokyslam.cli.options import (
     effective_config,
     smoke_overrides,
 )
+from smokyslam.config.localize import LocalizeConfig
 from smokyslam.errors import ConfigError
 
-DENSIFY = ("auto", "always", "never")
+DENSIFY = get_args(LocalizeConfig.model_fields["densify"].annotation)
+"""The values ``--densify`` takes: the config's."""
 
 
 def parse_pose(text: str, option: str) -> np.ndarray:

@@ -28,11 +28,11 @@ from smokyslam.mapio import OCCUPIED
 
 @dataclass(frozen=True)
 class LocalizationMap:
-    """The trinary ``cells`` over ``spec`` the filter uses; ``densified`` says whether they
-    are the up-sampled copy of the map given; ``isolated_share`` is the given map's."""
+    """The trinary ``cells`` the filter uses, on the given map's grid; ``densified`` says
+    whether they are the up-sampled copy of the map given; ``isolated_share`` is the given
+    map's."""
 
     cells: np.ndarray
-    spec: GridSpec
     densified: bool
     isolated_share: float
 
@@ -54,8 +54,8 @@ def localization_map(cells: np.ndarray, spec: GridSpec, config: SmokySlamConfig)
     share = isolated_share(cells)
     policy = config.localize.densify
     if policy == "never" or (policy == "auto" and share < config.localize.densify_isolated):
-        return LocalizationMap(cells, spec, False, share)
+        return LocalizationMap(cells, False, share)
     from smokyslam.upsample.infer import get_upsampler, upsample  # torch: only when used
 
     dense = upsample(get_upsampler(config.upsample, "gan"), cells, spec)
-    return LocalizationMap(dense.cells, spec, True, share)
+    return LocalizationMap(dense.cells, True, share)

@@ -77,7 +77,7 @@ def localize_log(
     config.upsample.method = "none"  # the localizer needs no dense map of the new walk
     saved = load_map(map_yaml)
     used = localization_map(saved.cells, saved.spec, config)
-    field = LikelihoodField(used.cells, used.spec, config.localize)  # an empty map: now
+    field = LikelihoodField(used.cells, saved.spec, config.localize)  # an empty map: now
     with OutputFolder(out_dir, overwrite=overwrite) as out:
         out.write_config(config)
         reader = open_log(log_path, config, require=get_source(SOURCE).requires)
@@ -103,7 +103,7 @@ def localize_log(
         plot_localization(
             out.path("localization.png"),
             used.cells,
-            used.spec,
+            saved.spec,
             poses,
             stages.localizer.first_particles,
             mcl.particles,
