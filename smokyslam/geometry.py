@@ -260,6 +260,19 @@ class GridSpec:
             (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < self.shape[1]) & (c[:, 1] < self.shape[0])
         )
 
+    def covering(self, other: GridSpec) -> GridSpec:
+        """The grid at this resolution, on this grid's lattice, that covers both this grid's
+        extent and ``other``'s (so this grid's own cells map onto whole cells)."""
+        res = self.resolution_m
+        ax0, ax1, ay0, ay1 = self.extent_m
+        bx0, bx1, by0, by1 = other.extent_m
+        ix0 = np.floor((min(ax0, bx0) - ax0) / res + 1e-6)
+        iy0 = np.floor((min(ay0, by0) - ay0) / res + 1e-6)
+        ix1 = np.ceil((max(ax1, bx1) - ax0) / res - 1e-6)
+        iy1 = np.ceil((max(ay1, by1) - ay0) / res - 1e-6)
+        origin = (float(ax0 + ix0 * res), float(ay0 + iy0 * res))
+        return GridSpec(origin, res, (int(iy1 - iy0), int(ix1 - ix0)))
+
     @property
     def extent_m(self) -> tuple[float, float, float, float]:
         """``(x_min, x_max, y_min, y_max)`` of the grid in the world."""

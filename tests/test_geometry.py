@@ -77,3 +77,16 @@ def test_grid_spec_cells_and_centres_round_trip():
 @given(st.floats(-np.pi, np.pi))
 def test_rotation_2d_is_the_rotation_block_of_se2_matrix(yaw):
     np.testing.assert_allclose(g.rotation_2d(yaw), g.se2_matrix(0.0, 0.0, yaw)[:2, :2])
+
+
+def test_covering_grid_keeps_the_lattice_and_spans_both():
+    spec = g.GridSpec((0.0, 0.0), 0.1, (10, 20))
+    # Off the lattice and finer: the covering grid stays on spec's lattice and resolution.
+    other = g.GridSpec((-0.33, 0.52), 0.05, (40, 10))
+    cover = spec.covering(other)
+    assert cover.resolution_m == 0.1
+    assert cover.origin_xy_m == pytest.approx((-0.4, 0.0))
+    x0, x1, y0, y1 = cover.extent_m
+    assert x0 <= -0.33 and x1 >= 2.0 - 1e-9 and y0 <= 0.0 and y1 >= 2.52 - 1e-9
+    assert cover.shape == (26, 24)
+    assert spec.covering(spec) == spec

@@ -27,16 +27,7 @@ def union_spec(a: GridSpec, b: GridSpec) -> GridSpec:
             f"maps of different resolution ({a.resolution_m} m, {b.resolution_m} m) share no "
             "grid: register the visual map onto the radar map first"
         )
-    res = a.resolution_m
-    ax0, ax1, ay0, ay1 = a.extent_m
-    bx0, bx1, by0, by1 = b.extent_m
-    # Whole cells of a's lattice, so a's own cells are copied unchanged.
-    ix0 = np.floor((min(ax0, bx0) - ax0) / res + 1e-6)
-    iy0 = np.floor((min(ay0, by0) - ay0) / res + 1e-6)
-    ix1 = np.ceil((max(ax1, bx1) - ax0) / res - 1e-6)
-    iy1 = np.ceil((max(ay1, by1) - ay0) / res - 1e-6)
-    origin = (ax0 + ix0 * res, ay0 + iy0 * res)
-    return GridSpec(origin, res, (int(iy1 - iy0), int(ix1 - ix0)))
+    return a.covering(b)
 
 
 class MapFuser:

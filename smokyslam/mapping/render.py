@@ -6,7 +6,6 @@ Colours, the same in every picture: map cells black (occupied), white (free) or 
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -25,24 +24,12 @@ FIGURE_WIDTH_IN, DPI = 7.0, 110
 """Every map picture is 7 inches (770 px) wide; its height follows the map's shape."""
 
 
-def _union_spec(spec: GridSpec, other: GridSpec | None) -> GridSpec:
-    """A grid at ``spec``'s resolution covering both grids."""
-    if other is None:
-        return spec
-    x0, x1, y0, y1 = spec.extent_m
-    u0, u1, v0, v1 = other.extent_m
-    left, bottom = min(x0, u0), min(y0, v0)
-    cols = math.ceil((max(x1, u1) - left) / spec.resolution_m - 1e-9)
-    rows = math.ceil((max(y1, v1) - bottom) / spec.resolution_m - 1e-9)
-    return GridSpec((left, bottom), spec.resolution_m, (rows, cols))
-
-
 def map_picture(
     cells: np.ndarray, spec: GridSpec, truth: GroundTruthMap | None = None
 ) -> tuple[np.ndarray, GridSpec]:
     """((rows, cols, 3) uint8 RGB, its grid): the map's cells over the union of its grid and
     the truth's (row 0 the lowest y), true walls tinted red."""
-    canvas = _union_spec(spec, truth.spec if truth is not None else None)
+    canvas = spec.covering(truth.spec) if truth is not None else spec
     if min(canvas.shape) == 0:
         raise MapFileError("cannot draw an empty map")
     map_cells = resample_nearest(np.asarray(cells, dtype=np.int8), spec, canvas, UNKNOWN)
