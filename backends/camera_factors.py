@@ -37,6 +37,7 @@ from smokyslam.geometry import (
     se2_conjugate,
     se2_inverse,
 )
+from smokyslam.types import StepPairs
 
 if TYPE_CHECKING:
     from smokyslam.config import BackendConfig, SlamConfig
@@ -103,6 +104,7 @@ class CameraFactorMaker:
         """Gate weight of the latest frame."""
         self.outcomes: Counter[str] = Counter()
         """Keyframe pairs by outcome: used, untracked, gated, no_scale, inconsistent."""
+        self._steps: list[tuple[float, float, np.ndarray, np.ndarray]] = []
 
     @property
     def latest_stamp_s(self) -> float:
@@ -114,6 +116,14 @@ class CameraFactorMaker:
         """Metres per camera unit of the current camera map, None until established."""
         estimate = self._scale.estimate()
         return None if estimate is None else estimate.scale
+
+    @property
+    def steps(self) -> StepPairs:
+        """Every pair that got a metric camera step, with the radar's step of it."""
+        if not self._steps:
+            return StepPairs(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3)))
+        a, b, radar, camera = zip(*self._steps, strict=True)
+        return StepPairs(np.column_stack([a, b]), np.array(radar), np.array(camera))
 
     def add(self, result: CameraOdometryResult) -> float:
         """Take one camera odometry frame; returns its gate weight."""
@@ -170,6 +180,7 @@ class CameraFactorMaker:
         covariance = self._covariance_scale * (span[0].covariance + span[-1].covariance)
         metric, metric_cov = metric_relative_pose(step, covariance, estimate)
         delta, delta_cov = se2_conjugate(metric, metric_cov, self._mount)
+        self._steps.append((stamp_a_s, stamp_b_s, np.asarray(radar_delta, dtype=float), delta))
         innovation = se2_between(radar_delta, delta)
         # Checked with the camera's own covariance: a degraded camera is weighed less in the
         # graph, but not let in with larger disagreements.

@@ -29,7 +29,7 @@ from smokyslam.backends.pose_graph import get_pose_graph
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.geometry import se2_compose
-from smokyslam.types import Odometry
+from smokyslam.types import Odometry, StepPairs
 
 logger = logging.getLogger(__name__)
 
@@ -137,6 +137,11 @@ class SlamBackend:
     def camera_pairs(self) -> dict[str, int]:
         """Keyframe pairs by camera outcome (used, untracked, gated, no_scale, inconsistent)."""
         return dict(self._camera.outcomes) if self._camera is not None else {}
+
+    @property
+    def step_pairs(self) -> StepPairs | None:
+        """The radar and camera steps of the keyframe pairs (None without camera factors)."""
+        return self._camera.steps if self._camera is not None else None
 
     @property
     def camera_scale_m(self) -> float | None:

@@ -153,6 +153,18 @@ class Odometry:
     keyframe: bool = True
 
 
+@dataclass(frozen=True)
+class StepPairs:
+    """The radar and the camera step of the same keyframe pairs, for evaluation against the
+    truth: ``stamps_s`` (M, 2) start and end of each pair; ``radar`` and ``camera`` (M, 3)
+    base_link poses of the end in the start, metres and radians (the camera's made metric,
+    before the consistency check)."""
+
+    stamps_s: np.ndarray
+    radar: np.ndarray
+    camera: np.ndarray
+
+
 Frame = RadarScan | CameraFrame | ImuSample
 """What a log reader's ``frames()`` yields: sensor frames only. Ground truth is read apart
 (``ground_truth_trajectory()``, ``ground_truth_map()``), by evaluation."""

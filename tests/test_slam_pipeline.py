@@ -229,6 +229,13 @@ def test_fused_run_writes_every_output(runs):
     assert factors["radar"] == metrics["keyframes"] - 1 > 50
     assert factors["camera"] > 10
     assert metrics["trajectory"]["lost_frames"] == 0
+    # Both steps of every pair with a metric camera step, against the true motion: the
+    # radar's a few millimetres per step, the camera's (checked before the gate) larger.
+    steps = metrics["step_errors"]
+    assert steps["pairs"] >= factors["camera"]
+    assert steps["radar"]["translation_rms_m"] < 0.02
+    assert steps["radar"]["translation_rms_m"] < steps["camera"]["translation_rms_m"] < 0.2
+    assert 0.0 < steps["radar"]["yaw_rms_deg"] < 1.0
     assert len(np.loadtxt(out / "trajectory_kitti.txt")) == metrics["trajectory"]["frames"]
 
 

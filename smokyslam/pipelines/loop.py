@@ -36,7 +36,7 @@ from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.health import RunHealth
 from smokyslam.pipelines.ordering import InOrder, StageClock
 from smokyslam.smoke import SmokeEmulator
-from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan
+from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan, StepPairs
 from smokyslam.viz.recorder import Due, FrameRecord, Recorder, RunSnapshot
 
 logger = logging.getLogger(__name__)
@@ -91,7 +91,8 @@ class RunEstimate:
     frame. graph: the backend's numbers (factors, keyframes, camera pairs, stage seconds), as
     ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
     health: the odometry's and the camera's health over time. localization: the localizer's
-    track, in the saved map's frame (None without a localizer).
+    track, in the saved map's frame (None without a localizer). step_pairs: the radar and
+    camera steps of the keyframe pairs (None without camera factors), for evaluation.
     """
 
     stamps_s: np.ndarray
@@ -106,6 +107,7 @@ class RunEstimate:
     extra: dict[str, Any] = field(default_factory=dict)
     health: RunHealth = field(default_factory=RunHealth)
     localization: LocalizationTrack | None = None
+    step_pairs: StepPairs | None = None
     interrupted: bool = False
 
 
@@ -332,4 +334,5 @@ class RunLoop:
             extra=extra,
             health=self._health,
             localization=self.stages.localizer.track if self.stages.localizer else None,
+            step_pairs=backend.step_pairs,
         )

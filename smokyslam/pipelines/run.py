@@ -19,6 +19,7 @@ from typing import Any
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import RunInterruptedError
 from smokyslam.evaluation.run_evaluation import RunEvaluation, evaluate_estimate
+from smokyslam.evaluation.step_errors import step_errors
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import config_for_log, open_log
 from smokyslam.outputs import OutputFolder
@@ -163,6 +164,8 @@ def run_reader(
             out.update_metrics({"interrupted": True})
         with _dense_closed(estimate):  # the up-sampling worker stops, whatever happens
             evaluation = evaluate_source(estimate, truth, source)
+            if (errors := step_errors(estimate.step_pairs, truth)) is not None:
+                out.update_metrics({"step_errors": errors})
             write_trajectory(out, source, estimate, evaluation, truth, reader)
             observed = reader.observed_ground_truth_map()
             write_maps(out, source, estimate, evaluation, gt_map, observed, spec.camera_only)
