@@ -102,3 +102,28 @@ def test_bad_sweep_files_are_one_clear_line(tmp_path, text, message):
     )
     lines = out.stderr.strip().splitlines()
     assert out.returncode == 1 and len(lines) == 1 and message in lines[0], out.stderr
+
+
+def test_the_summary_gives_each_sources_step_precision_of_the_fused_runs(tmp_path):
+    from smokyslam.evaluation.compare_table import CompareRow, RunStatus
+    from smokyslam.smoke import parse_smoke
+    from smokyslam.sweep.results import SweepRow, write_summary
+    from smokyslam.sweep.spec import World
+
+    def fused(seed, radar_m, camera_m, used):
+        metrics = {
+            "trajectory": {"ate_rmse_m": 0.1},
+            "camera_pairs": {"used": used, "inconsistent": 100 - used},
+            "step_errors": {
+                "pairs": 100,
+                "radar": {"translation_rms_m": radar_m, "yaw_rms_deg": 0.2},
+                "camera": {"translation_rms_m": camera_m, "yaw_rms_deg": 0.5},
+            },
+        }
+        row = CompareRow("fused", parse_smoke("0.1:0.2"), tmp_path, RunStatus.OK, "", metrics)
+        return SweepRow(World(f"office-{seed}", "office", seed), "default", row)
+
+    rows = [fused(1, 0.005, 0.040, 30), fused(2, 0.007, 0.050, 20), fused(3, 0.006, 0.030, 40)]
+    summary = write_summary(rows, tmp_path, "steps").read_text()
+    assert "## Per-step precision of the fused runs' two sources" in summary
+    assert "| r0.1-c0.2 | office | default | 3 | 6.00 | 40.00 | 0.20 | 0.50 | 30% |" in summary

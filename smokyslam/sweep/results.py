@@ -160,9 +160,52 @@ def write_summary(rows: Sequence[SweepRow], out_dir: Path, title: str) -> Path:
                     f"| {kind} | {config} | {source} | {len(chosen)} | {_stats(ate)} | "
                     f"{_stats(best)} | {_stats(dr)} |"
                 )
+    lines += _step_lines(rows)
     if failed:
         lines += ["", "## Failed runs", ""]
         lines += [f"- `{_relative(r.row.run_dir, out_dir)}`: {r.row.error}" for r in failed]
     path = out_dir / "summary.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _step_lines(rows: Sequence[SweepRow]) -> list[str]:
+    """The fused runs' per-step precision of each source (``step_errors`` in their metrics)
+    and the share of keyframe pairs the camera joined: medians per smoke level, kind, config."""
+    groups: dict[tuple[str, str, str], list[dict]] = {}
+    for row in rows:
+        metrics = row.row.metrics
+        if row.row.source == "fused" and row.row.ok and "step_errors" in metrics:
+            key = (row.row.level.label, row.world.kind, row.config)
+            groups.setdefault(key, []).append(metrics)
+    if not groups:
+        return []
+    lines = ["", "## Per-step precision of the fused runs' two sources", ""]
+    lines.append("Every keyframe pair's radar and camera step against the true motion (the")
+    lines.append("camera's before its consistency check), medians over the runs; joined: the")
+    lines.append("share of keyframe pairs that got a camera factor.")
+    lines.append("")
+    lines.append(
+        "| smoke | kind | config | runs | radar mm | camera mm | radar yaw deg "
+        "| camera yaw deg | camera joined |"
+    )
+    lines.append("|" + "---|" * 9)
+    for (level, kind, config), group in groups.items():
+        steps = [m["step_errors"] for m in group]
+
+        def median(source: str, key: str, scale: float = 1.0, steps=steps) -> str:
+            return f"{scale * float(np.median([s[source][key] for s in steps])):.2f}"
+
+        joined = [
+            m["camera_pairs"].get("used", 0) / total
+            for m in group
+            if (total := sum(m.get("camera_pairs", {}).values()))
+        ]
+        lines.append(
+            f"| {level} | {kind} | {config} | {len(group)} "
+            f"| {median('radar', 'translation_rms_m', 1e3)} "
+            f"| {median('camera', 'translation_rms_m', 1e3)} "
+            f"| {median('radar', 'yaw_rms_deg')} | {median('camera', 'yaw_rms_deg')} "
+            f"| {f'{np.median(joined):.0%}' if joined else '–'} |"
+        )
+    return lines
