@@ -38,7 +38,7 @@ def step_errors(
     return out
 
 
-def _errors(steps: np.ndarray, true_step: np.ndarray) -> dict[str, float]:
+def _errors(steps: np.ndarray, true_step: np.ndarray) -> dict[str, float | None]:
     error = se2_between(true_step, steps)
     true_length = np.linalg.norm(true_step[:, :2], axis=1)
     moving = true_length >= 0.05
