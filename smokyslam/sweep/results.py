@@ -192,10 +192,6 @@ def _step_lines(rows: Sequence[SweepRow]) -> list[str]:
     lines.append("|" + "---|" * 9)
     for (level, kind, config), group in groups.items():
         steps = [m["step_errors"] for m in group]
-
-        def median(source: str, key: str, scale: float = 1.0, steps=steps) -> str:
-            return f"{scale * float(np.median([s[source][key] for s in steps])):.2f}"
-
         joined = [
             m["camera_pairs"].get("used", 0) / total
             for m in group
@@ -203,9 +199,15 @@ def _step_lines(rows: Sequence[SweepRow]) -> list[str]:
         ]
         lines.append(
             f"| {level} | {kind} | {config} | {len(group)} "
-            f"| {median('radar', 'translation_rms_m', 1e3)} "
-            f"| {median('camera', 'translation_rms_m', 1e3)} "
-            f"| {median('radar', 'yaw_rms_deg')} | {median('camera', 'yaw_rms_deg')} "
+            f"| {_median(steps, 'radar', 'translation_rms_m', 1e3)} "
+            f"| {_median(steps, 'camera', 'translation_rms_m', 1e3)} "
+            f"| {_median(steps, 'radar', 'yaw_rms_deg')} "
+            f"| {_median(steps, 'camera', 'yaw_rms_deg')} "
             f"| {f'{np.median(joined):.0%}' if joined else '–'} |"
         )
     return lines
+
+
+def _median(steps: list[dict], source: str, key: str, scale: float = 1.0) -> str:
+    """The median of ``step_errors[source][key]`` over runs, times ``scale``, as text."""
+    return f"{scale * float(np.median([s[source][key] for s in steps])):.2f}"
