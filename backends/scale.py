@@ -2,8 +2,15 @@
 
 Camera relative poses come up to an unknown scale that stays roughly constant while tracking
 and is lost when the camera is. Over a sliding window of keyframe pairs the metric (radar)
-translation length is compared with the camera's: the median ratio rejects outliers, then a
-least-squares fit through the origin on the inliers weights long baselines more.
+translation length is compared with the camera's: the median ratio rejects outliers, then the
+scale is the inliers' summed metric length over their summed camera length.
+
+Why a ratio of sums, not a least-squares fit of the metric lengths on the camera's: a fit
+takes its regressor as exact, and here the regressor is the noisy one (per keyframe step the
+camera's length is 12-17 % off, the radar's 2 %, measured by ``metrics.json`` ``step_errors``).
+Noise in the regressor shrinks the fitted slope by about 1 / (1 + relative variance): the
+camera's metric steps came out 2-3 % short, 3 mm a step, and the fused path shrank with them.
+A ratio of sums is unbiased to first order whichever side is noisy.
 """
 
 from __future__ import annotations
@@ -76,11 +83,11 @@ class ScaleEstimator:
         if inliers.sum() < self._min_pairs:
             return None
         c, m = camera[inliers], metric[inliers]
-        scale = float(c @ m / (c @ c))
+        n = len(c)
+        scale = float(m.sum() / c.sum())
         residual = m - scale * c
-        dof = max(int(inliers.sum()) - 1, 1)
-        sigma = np.sqrt(residual @ residual / dof / (c @ c))
-        return ScaleEstimate(scale, float(sigma / scale), int(inliers.sum()))
+        sigma = np.sqrt(residual @ residual * n / max(n - 1, 1)) / c.sum()
+        return ScaleEstimate(scale, float(sigma / scale), n)
 
 
 def metric_relative_pose(

@@ -47,6 +47,22 @@ def test_scaled_camera_translations_come_out_metric():
     assert covariance[2, 2] == pytest.approx(1e-4)
 
 
+def test_a_noisy_camera_does_not_shrink_the_scale():
+    """Camera step lengths 15 % off and radar 2 % (as measured per keyframe step): a fit of
+    the radar lengths on the camera's came out 1.9 % low on average over these windows; the
+    ratio of sums is within 0.5 %."""
+    rng = np.random.default_rng(3)
+    errors = []
+    for _ in range(200):
+        estimator = get_scale_estimator(ScaleConfig(window=20, min_pairs=5, inlier_tolerance=1.0))
+        estimate = None
+        for t in motions(rng, 20):
+            camera = t / 2.0 * (1.0 + rng.normal(0.0, 0.15))
+            estimate = estimator.update(camera, t * (1.0 + rng.normal(0.0, 0.02)))
+        errors.append(estimate.scale / 2.0 - 1.0)
+    assert abs(np.mean(errors)) < 0.005
+
+
 def test_outlier_pairs_do_not_bias_the_scale():
     rng = np.random.default_rng(1)
     estimator = get_scale_estimator(ScaleConfig(window=30, min_pairs=5))
