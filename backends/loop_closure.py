@@ -3,8 +3,9 @@
 Candidates are old keyframes (at least ``min_index_gap`` back) within ``search_radius_m`` of the
 current estimate. The current submap is aligned to each by a Huber-weighted point-to-point ICP
 started from the odometry guess; a match is kept only if enough points agree, the residual is
-small and ICP did not move far from the guess. Even so a wrong match can slip through, so the
-caller adds the result with a robust kernel.
+small and ICP did not move far from the guess. A near match (ICP moved the guess little) needs
+fewer agreeing points than a far one. Even so a wrong match can slip through, so the caller
+adds the result with a robust kernel.
 """
 
 from __future__ import annotations
@@ -132,11 +133,16 @@ class LoopCloser:
         max_correction: tuple[float, float],
         min_spacing: int,
         floor_sigmas: tuple[float, float, float],
+        near: tuple[float, float] = (0.0, 1.0),
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
         floor_sigmas: smallest [x_m, y_m, theta_rad] sigmas a closure may claim (point-to-point
-        ICP is overconfident on sparse radar points)."""
+        ICP is overconfident on sparse radar points). near: (metres, inlier fraction) a match
+        that shifts the guess at most that far needs only that inlier fraction (the default
+        turns it off). Where the estimate was already right, a partial overlap rarely aligns
+        wrongly; a far correction on partial overlap is as often an aisle or corridor slid
+        along as a real one."""
         self._search_radius_m = search_radius_m
         self._min_index_gap = min_index_gap
         self._max_candidates = max_candidates
@@ -147,6 +153,7 @@ class LoopCloser:
         self._max_correction = max_correction
         self._min_spacing = min_spacing
         self._floor_sigmas = np.asarray(floor_sigmas, dtype=float)
+        self._near_correction_m, self._near_min_inlier_fraction = near
         self._trees: dict[int, cKDTree] = {}
         self._last_closure = -(10**9)
 
@@ -192,10 +199,16 @@ class LoopCloser:
 
     def _verified(self, result: IcpResult, guess: np.ndarray) -> bool:
         correction = se2_between(guess, result.delta)
+        shift_m = float(np.hypot(correction[0], correction[1]))
+        min_inliers = (
+            self._near_min_inlier_fraction
+            if shift_m <= self._near_correction_m
+            else self._min_inlier_fraction
+        )
         return bool(
-            result.inlier_fraction >= self._min_inlier_fraction
+            result.inlier_fraction >= min_inliers
             and result.rms_m <= self._max_rms_m
-            and np.hypot(correction[0], correction[1]) <= self._max_correction[0]
+            and shift_m <= self._max_correction[0]
             and abs(correction[2]) <= self._max_correction[1]
         )
 
@@ -213,4 +226,5 @@ def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
         max_correction=(config.max_correction_m, config.max_correction_rad),
         min_spacing=config.min_spacing,
         floor_sigmas=config.floor_sigmas,
+        near=(config.near_correction_m, config.near_min_inlier_fraction),
     )

@@ -172,6 +172,12 @@ class LoopClosureConfig(_Section):
     min_points: int = Field(20, ge=3, description="smaller submaps are not matched")
     inlier_distance_m: float = Field(0.3, gt=0.0, description="ICP match / inlier distance")
     min_inlier_fraction: float = Field(0.6, gt=0.0, le=1.0)
+    near_correction_m: float = Field(
+        0.2, ge=0.0, description="an ICP shift at most this from the guess is a near closure"
+    )
+    near_min_inlier_fraction: float = Field(
+        0.45, gt=0.0, le=1.0, description="the inlier fraction a near closure needs"
+    )
     max_rms_m: float = Field(0.12, gt=0.0, description="RMS of inlier distances")
     max_correction_m: float = Field(1.5, gt=0.0, description="ICP shift from the odometry guess")
     max_correction_rad: float = Field(0.4, gt=0.0, description="ICP turn from the guess")
