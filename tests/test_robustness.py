@@ -219,6 +219,13 @@ def test_a_carmen_file_of_anything_reads_or_is_one_log_error(tmp_path_factory, l
 # ---------------------------------------------------------------- Ctrl-C
 
 
+STOP_WITHIN_S = 3.0
+"""How soon a Ctrl-C'd comparison or sweep must have exited, its interrupted runs' outputs
+written and its Dask workers stopped. Measured 1.7-1.9 s on a quiet 2-core machine; 2.6 s once
+in a freshly installed clone and once beside other jobs. Runs that went on after the Ctrl-C
+would take longer than this: each run of the 30 s log takes 3-5 s, and two more are queued."""
+
+
 def _start(args: list, out_dir: Path, settle_s: float = 1.5) -> subprocess.Popen:
     process = subprocess.Popen(
         [sys.executable, "-m", "smokyslam.cli", *map(str, args)],
@@ -298,7 +305,7 @@ def test_ctrl_c_keeps_what_the_run_computed(office_log, tmp_path):
     pytest.fail("no Ctrl-C landed inside the run in five tries")
 
 
-def test_ctrl_c_stops_a_comparison_within_two_seconds(office_log, tmp_path):
+def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
     # The Ctrl-C must land while a run is under way on a Dask worker, after its first frames:
     # the delay adapts to the machine's load, as for a single run.
     delay_s = 2.0
@@ -318,7 +325,7 @@ def test_ctrl_c_stops_a_comparison_within_two_seconds(office_log, tmp_path):
         if process.returncode == 0:  # every run had finished
             delay_s /= 2
             continue
-        assert stopped_s < 2.5
+        assert stopped_s < STOP_WITHIN_S
         assert process.returncode == 130 and "Traceback" not in stderr, stderr
         table = (out_dir / "compare.csv").read_text().splitlines()
         assert len(table) == 5 and any(",interrupted," in row for row in table)
@@ -385,7 +392,7 @@ def test_ctrl_c_stops_a_sweep_and_leaves_no_worker(office_log, tmp_path):
         if process.returncode == 0:  # every run had finished
             delay_s /= 2
             continue
-        assert time.monotonic() - started < 2.5
+        assert time.monotonic() - started < STOP_WITHIN_S
         assert process.returncode == 130 and "Traceback" not in stderr, stderr
         table = (out_dir / "sweep.csv").read_text().splitlines()
         assert len(table) == 5 and any(",interrupted," in row for row in table)
