@@ -133,16 +133,15 @@ class LoopCloser:
         max_correction: tuple[float, float],
         min_spacing: int,
         floor_sigmas: tuple[float, float, float],
-        near: tuple[float, float] = (0.0, 1.0),
+        near: tuple[float, float],
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
         floor_sigmas: smallest [x_m, y_m, theta_rad] sigmas a closure may claim (point-to-point
         ICP is overconfident on sparse radar points). near: (metres, inlier fraction) a match
-        that shifts the guess at most that far needs only that inlier fraction (the default
-        turns it off). Where the estimate was already right, a partial overlap rarely aligns
-        wrongly; a far correction on partial overlap is as often an aisle or corridor slid
-        along as a real one."""
+        that shifts the guess at most that far needs only that inlier fraction. Where the
+        estimate was already right, a partial overlap rarely aligns wrongly; a far correction on
+        partial overlap is as often an aisle or corridor slid along as a real one."""
         self._search_radius_m = search_radius_m
         self._min_index_gap = min_index_gap
         self._max_candidates = max_candidates
