@@ -126,11 +126,16 @@ def test_bad_weights_files_are_one_clear_error(tmp_path, content, message):
         load_weights(tmp_path / "missing.pt")
 
 
-def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path):
+@pytest.mark.parametrize("half_turn", [False, True])
+def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path, half_turn):
     """The pass is anchored to the world grid: the same place gives the same value in a map
     extended by unknown cells on any side (any shift, not only multiples of the stride)."""
     upsampler = GanUpsampler(
-        _weights(tmp_path), margin_cells=24, max_pass_cells=1024, keep_walls_above=1.0
+        _weights(tmp_path),
+        margin_cells=24,
+        max_pass_cells=1024,
+        keep_walls_above=1.0,
+        half_turn=half_turn,
     )
     sparse, _ = _sparse_room()
     spec = GridSpec((-0.1, -0.1), 0.1, sparse.shape)
@@ -141,6 +146,31 @@ def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path):
         shifted = upsampler.values(bigger, GridSpec(origin, 0.1, bigger.shape))
         crop = shifted[rows : rows + sparse.shape[0], cols : cols + sparse.shape[1]]
         assert np.abs(crop - base).max() < 1e-4
+
+
+@pytest.mark.parametrize("half_turn", [False, True])
+def test_with_the_half_turn_a_turned_map_up_samples_to_the_turned_result(tmp_path, half_turn):
+    """Averaged with its half turn, the dense map of a map turned by 180 degrees about the
+    world origin is the dense map turned; the network alone (here untrained) is not so."""
+    sparse, _ = _sparse_room()
+    upsampler = GanUpsampler(_weights(tmp_path), 24, 1024, 1.0, half_turn=half_turn)
+    spec = GridSpec((-0.3, 0.5), 0.1, sparse.shape)
+    last_xy = np.array(spec.origin_xy_m) + 0.1 * np.array(
+        [sparse.shape[1] - 1, sparse.shape[0] - 1]
+    )
+    turned_spec = GridSpec(tuple(-last_xy), 0.1, sparse.shape)
+    values = upsampler.values(sparse, spec)
+    turned = upsampler.values(np.ascontiguousarray(sparse[::-1, ::-1]), turned_spec)
+    difference = np.abs(turned[::-1, ::-1] - values).max()
+    assert difference < 1e-5 if half_turn else difference > 1e-3
+
+
+def test_the_channels_last_layout_gives_the_same_values(tmp_path):
+    sparse, _ = _sparse_room()
+    spec = GridSpec((0.0, 0.0), 0.1, sparse.shape)
+    plain = GanUpsampler(_weights(tmp_path), 24, 1024, 1.0).values(sparse, spec)
+    fast = GanUpsampler(_weights(tmp_path), 24, 1024, 1.0, channels_last=True)
+    np.testing.assert_allclose(fast.values(sparse, spec), plain, atol=1e-5)
 
 
 def test_tiles_blend_into_the_one_pass_result(tmp_path):

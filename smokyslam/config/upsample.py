@@ -70,6 +70,11 @@ class UpsampleConfig(_Section):
         description="gan: cells the radar map holds occupied stay occupied unless the"
         " network's probability is below this (1: the network alone)",
     )
+    half_turn: bool = Field(
+        True,
+        description="gan: average the network's pass over the map with its pass over the map"
+        " turned by 180 degrees (test-time augmentation)",
+    )
     refresh_period_s: float = Field(
         5.0, gt=0.0, description="log seconds between background refreshes during a run"
     )

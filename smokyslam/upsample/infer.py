@@ -10,6 +10,14 @@ place gives the same result in a map cropped or extended anywhere. Maps larger t
 ``max_pass_cells`` a side go in overlapping tiles blended by a smooth window; either way no
 seam runs along a tile border.
 
+By default (``upsample.half_turn``) the network also passes over the map turned by 180
+degrees, and the two are averaged: test-time augmentation, so the dense map no longer depends
+on which way the map happens to face. Measured on 32 worlds never trained on (12 of
+offices, warehouses, corridors and floor plans, 20 more offices, maps on true poses, against
+the observed truth): mean occupied F1 0.686 -> 0.701 and 0.671 -> 0.676, mean error index
+0.0601 -> 0.0589 and 0.0494 -> 0.0481. The passes run in channels-last memory layout, which
+makes each about twice as fast on CPU, so the two cost what one did before.
+
 The classical baseline closes gaps in the walls (morphological closing of occupied cells)
 and fills the unknown gaps between observed free rays (closing of the known cells).
 """
@@ -75,12 +83,21 @@ class GanUpsampler:
         margin_cells: int,
         max_pass_cells: int,
         keep_walls_above: float,
+        half_turn: bool = False,
+        channels_last: bool = False,
     ):
         """``keep_walls_above``: a cell the radar map holds occupied stays occupied unless the
-        network's probability there is below this (1 turns it off: the network alone)."""
+        network's probability there is below this (1 turns it off: the network alone).
+        ``half_turn``: also pass the map turned by 180 degrees and average the two.
+        ``channels_last``: run the network in that memory layout (the same values to float
+        rounding, about twice as fast on CPU; it converts ``weights.generator`` in place)."""
+        import torch
+
         self.weights = weights
         self.keep_walls_above = keep_walls_above
-        self.generator = weights.generator
+        self.half_turn = half_turn
+        self.layout = torch.channels_last if channels_last else torch.contiguous_format
+        self.generator = weights.generator.to(memory_format=self.layout)
         self.stride = self.generator.stride
         self.margin = margin_cells
         self.max_pass = max(max_pass_cells, 4 * margin_cells + self.stride)
@@ -90,15 +107,24 @@ class GanUpsampler:
         if not (cells != UNKNOWN).any():
             return np.full(cells.shape, 0.5, dtype=np.float32)
         first = np.rint(np.asarray(spec.origin_xy_m) / spec.resolution_m).astype(np.int64)
-        if max(cells.shape) <= self.max_pass:
-            values = self._pass(cells, first)
-        else:
-            values = self._tiled(cells, first)
+        values = self._anchored(cells, first)
+        if self.half_turn:
+            # The turned map's cell [0, 0] is this map's last one; world cells are counted
+            # negated there, so the turned pass stays anchored to the world grid too.
+            last = first + np.array([cells.shape[1] - 1, cells.shape[0] - 1])
+            turned = self._anchored(np.ascontiguousarray(cells[::-1, ::-1]), -last)
+            values = 0.5 * (values + turned[::-1, ::-1])
         # The radar saw these walls: the network drops some of them (a warehouse's rack faces
         # it has rarely seen), and keeping those it is not fairly sure are free raised occupied
         # F1 on 5 of 6 unseen worlds at the same error index.
         values[(cells == OCCUPIED) & (values >= self.keep_walls_above)] = 1.0
         return values
+
+    def _anchored(self, cells: np.ndarray, first_ixy: np.ndarray) -> np.ndarray:
+        """The network's values of ``cells`` (cell [0, 0] is world cell ``first_ixy``)."""
+        if max(cells.shape) <= self.max_pass:
+            return self._pass(cells, first_ixy)
+        return self._tiled(cells, first_ixy)
 
     def _pass(self, cells: np.ndarray, first_ixy: np.ndarray) -> np.ndarray:
         """One pass over ``cells`` whose cell [0, 0] is world cell ``first_ixy``."""
@@ -109,7 +135,8 @@ class GanUpsampler:
         after = [(-(before[0] + rows + m) % s) + m, (-(before[1] + cols + m) % s) + m]
         padded = np.pad(encode_cells(cells), ((0, 0), (before[0], after[0]), (before[1], after[1])))
         with torch.inference_mode():
-            logits = self.generator(torch.from_numpy(padded)[None])
+            batch = torch.from_numpy(padded)[None].contiguous(memory_format=self.layout)
+            logits = self.generator(batch)
         values = torch.sigmoid(logits + self.weights.logit_offset)[0, 0].numpy()
         return values[before[0] : before[0] + rows, before[1] : before[1] + cols].copy()
 
@@ -175,7 +202,12 @@ def get_upsampler(config: UpsampleConfig, method: str | None = None) -> Upsample
     if method == "gan":
         weights = load_weights(config.weights)
         return GanUpsampler(
-            weights, config.margin_cells, config.max_pass_cells, config.keep_walls_above
+            weights,
+            config.margin_cells,
+            config.max_pass_cells,
+            config.keep_walls_above,
+            half_turn=config.half_turn,
+            channels_last=True,
         )
     if method == "classical":
         return ClassicalUpsampler(config.closing_radius_cells, config.free_fill_radius_cells)
