@@ -90,14 +90,17 @@ class GanUpsampler:
         network's probability there is below this (1 turns it off: the network alone).
         ``half_turn``: also pass the map turned by 180 degrees and average the two.
         ``channels_last``: run the network in that memory layout (the same values to float
-        rounding, about twice as fast on CPU; it converts ``weights.generator`` in place)."""
+        rounding, about twice as fast on CPU; it converts ``weights.generator`` in place, so
+        only inference asks for it: training's validation leaves its generator as it is)."""
         import torch
 
         self.weights = weights
         self.keep_walls_above = keep_walls_above
         self.half_turn = half_turn
         self.layout = torch.channels_last if channels_last else torch.contiguous_format
-        self.generator = weights.generator.to(memory_format=self.layout)
+        self.generator = weights.generator
+        if channels_last:
+            self.generator = self.generator.to(memory_format=self.layout)
         self.stride = self.generator.stride
         self.margin = margin_cells
         self.max_pass = max(max_pass_cells, 4 * margin_cells + self.stride)
