@@ -146,6 +146,33 @@ def test_global_localization_keeps_both_mirror_hypotheses_until_the_symmetry_bre
     assert np.hypot(*(mcl.estimate()[0][:2] - truth[-1, :2])) < 0.2
 
 
+def test_a_kidnapping_after_a_global_start_is_noticed_once_the_cloud_has_settled():
+    """Augmented MCL injects when its short average of the fit falls below its long one. After
+    a global start the long one began with a cloud spread over the whole hall, which fits far
+    worse than the settled cloud; once the cloud settles, it starts over from the short one.
+    Measured over 6 seeds: recovered within 20 frames in 6 (injecting from the 7th frame); with
+    the long average left where the spread cloud put it, in 2 (injecting from the 12th)."""
+    world, rng = symmetric_hall(), np.random.default_rng(1)
+    settings = LocalizeConfig(seed=1)
+    mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
+    truth = np.column_stack([4.0 + 0.2 * np.arange(46), np.ones(46), np.zeros(46)])
+    mcl.start_global()
+    for k in range(len(truth)):
+        if k:
+            delta = se2_between(truth[k - 1], truth[k]) + rng.normal(0.0, [0.01, 0.01, 0.005])
+            mcl.predict(delta, STEP_COV)
+        mcl.update(scan(world, truth[k], rng, max_range_m=5.0))
+    assert share_near(mcl, truth[-1]) > 0.95
+    # Kidnapped: carried back to x = 6 m, the odometry none the wiser.
+    kidnapped = np.column_stack([6.0 + 0.2 * np.arange(20), np.ones(20), np.zeros(20)])
+    errors = []
+    for pose in kidnapped:
+        mcl.predict(np.array([0.2, 0.0, 0.0]), STEP_COV)
+        mcl.update(scan(world, pose, rng, max_range_m=5.0))
+        errors.append(np.hypot(*(mcl.estimate()[0][:2] - pose[:2])))
+    assert errors[0] > 4.0 and errors[-1] < 0.2, errors
+
+
 def test_a_map_without_an_occupied_cell_is_refused():
     cells = np.full((20, 20), FREE, dtype=np.int8)
     with pytest.raises(MapError, match="no occupied cell"):

@@ -1,6 +1,7 @@
 """Monte Carlo localization in a saved map: predict with odometry, weigh by the likelihood
 field, resample (low-variance), adapt the particle count (KLD), recover from kidnapping by
-injecting particles when the likelihood collapses (augmented MCL). Particles placed for a
+injecting particles when the likelihood collapses (augmented MCL; after a global start its
+long average starts over once the cloud has settled). Particles placed for a
 global start, and injected ones, are drawn where the current scan fits (mixture MCL's dual
 sampling, ``sampling.py``), not uniformly. Scouts (``scouts.py``) search around the estimate
 and take over when they explain the scans clearly better, for a cloud that went wrong so early
@@ -27,6 +28,8 @@ INJECT_FLOOR = 0.2
 """Injection rates below this are the averages' noise, not a collapsed likelihood (a scan's
 fit swings by tens of percent from frame to frame; at 0.05 a walk into a poorly mapped room
 drew particles to a wrong place that fitted better for a few scans)."""
+SETTLED_SHARE = 0.9
+"""A global start's cloud has settled once its main mode holds this share of the weight."""
 MODE_RADIUS_M, MODE_RADIUS_RAD = 1.0, np.radians(30.0)
 """How far from the heaviest bin a particle still belongs to the main mode."""
 
@@ -46,6 +49,7 @@ class MonteCarloLocalizer:
         self._w_slow = self._w_fast = self._w_mode = 0.0
         self._place_on_first_scan = False
         self._tracking = False
+        self._settling = False
         self._mode_cache: tuple[int, tuple[np.ndarray, np.ndarray]] | None = None
         scout_rng = np.random.default_rng([settings.seed, 1])  # the filter's own draws unchanged
         self.scouts = Scouts(field, settings, scout_rng)
@@ -75,6 +79,7 @@ class MonteCarloLocalizer:
         self.set.reset(self._random_particles(self.settings.max_particles))
         self._place_on_first_scan = True
         self._tracking = False
+        self._settling = True
 
     def _random_particles(self, n: int) -> np.ndarray:
         free = self.field.free_xy
@@ -120,6 +125,8 @@ class MonteCarloLocalizer:
         per_point = np.exp(raw[near] / len(points_xy))
         mode_l = float(self.weights[near] @ per_point / self.weights[near].sum())
         self._w_mode = smoothed(self._w_mode, mode_l, s.alpha_fast)
+        if self._settling and self.weights[near].sum() >= SETTLED_SHARE:
+            self._restart_long_average()
         if self.scouts.update(points_xy, mode, self._w_mode, p_unknown):
             self.set.reset(self.scouts.take(len(self.set)))  # they found a better place
             self._w_mode = 0.0
@@ -130,6 +137,16 @@ class MonteCarloLocalizer:
             self._tracking = False  # the likelihood collapsed: search from now on
         if inject > 0.0 or self.set.degenerate(s.resample_ess):
             self._resample(inject, points_xy)
+
+    def _restart_long_average(self) -> None:
+        """A global start's cloud has settled: augmented MCL's long average starts over
+        from the short one. Until now it averaged a cloud spread over the whole map, which
+        explains the points far worse than any settled cloud (0.34 against 0.65 per point on
+        office 20001); anchored there, it would never notice the settled cloud fitting worse
+        and worse in a wrong place (0.40 there, while the true pose fitted 0.80), and no
+        particle would be injected."""
+        self._settling = False
+        self._w_slow = self._w_fast
 
     @property
     def p_unknown(self) -> float:
