@@ -305,6 +305,52 @@ def test_ctrl_c_keeps_what_the_run_computed(office_log, tmp_path):
     pytest.fail("no Ctrl-C landed inside the run in five tries")
 
 
+def test_a_ctrl_c_inside_a_stage_waits_until_the_frame_has_gone_through_every_stage(
+    tiny_logs, monkeypatch
+):
+    # The Ctrl-C lands in the pose graph, after it took the 5th radar frame and before the
+    # maps and the run's health did: the loop must finish that frame first, or the maps,
+    # the graph and the health disagree (as a fused run's visual keyframes once did, and its
+    # trust grid then indexed past the end).
+    from smokyslam.backends.slam import SlamBackend
+    from smokyslam.pipelines.run import run_source
+
+    calls = []
+    add_odometry = SlamBackend.add_odometry
+
+    def interrupted_add_odometry(self, *args, **kwargs):
+        keyframe = add_odometry(self, *args, **kwargs)
+        calls.append(keyframe)
+        if len(calls) == 5:
+            os.kill(os.getpid(), signal.SIGINT)
+        return keyframe
+
+    monkeypatch.setattr(SlamBackend, "add_odometry", interrupted_add_odometry)
+    config = load_config()
+    estimate = run_source(open_log(tiny_logs[".mcap"], config), "radar", config)
+    assert estimate.interrupted
+    assert 5 <= len(estimate.stamps_s) < 30
+    assert len(estimate.health.stamps_s) == len(estimate.stamps_s) == len(calls)
+
+
+def test_a_ctrl_c_while_the_outputs_are_written_keeps_what_was_written(
+    tiny_logs, tmp_path, monkeypatch
+):
+    import smokyslam.pipelines.run as run_module
+    from smokyslam.errors import RunInterruptedError
+
+    def interrupted_write_maps(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "write_maps", interrupted_write_maps)
+    with pytest.raises(RunInterruptedError, match=str(tmp_path / "run")):
+        run_log(tiny_logs[".mcap"], "radar", load_config(), tmp_path / "run")
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["interrupted"] is True and metrics["trajectory"]["frames"] == 31
+    assert (tmp_path / "run" / "trajectory.tum").is_file()
+    assert not (tmp_path / "run" / "maps").exists()
+
+
 def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
     # The Ctrl-C must land while a run is under way on a Dask worker, after its first frames:
     # the delay adapts to the machine's load, as for a single run.

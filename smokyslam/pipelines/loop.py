@@ -35,6 +35,7 @@ from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.health import RunHealth
 from smokyslam.pipelines.ordering import InOrder, StageClock
+from smokyslam.pipelines.worker_process import interrupt_held
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan, StepPairs
 from smokyslam.viz.recorder import Due, FrameRecord, Recorder, RunSnapshot
@@ -144,7 +145,8 @@ class RunLoop:
                 for frame in frames:
                     if self._should_stop():
                         raise KeyboardInterrupt  # a requested stop is a Ctrl-C
-                    self._read(frame)
+                    with interrupt_held():
+                        self._read(frame)
                     self._hand_over(keep=MAX_LAG)
                 self._finish()
                 if stamps := self._health.stamps_s:  # the final graph and maps, when recorded
@@ -179,18 +181,26 @@ class RunLoop:
         self._hand_over(keep=0)
         if self.stages.camera_steps is not None:
             for step in self.stages.camera_steps.flush():
-                self._camera_step(step)
+                with interrupt_held():
+                    self._camera_step(step)
 
     # ------------------------------------------------------------------ handing over
 
     def _hand_over(self, keep: int) -> None:
+        """The front of the queue through the stages. A Ctrl-C waits until the item in hand
+        has gone through all of them (the maps, the graph and the health then agree), but not
+        for a camera frame still tracking."""
         for item in self._order.ready(keep):
-            if isinstance(item, RadarFrame):
-                self._radar_frame(item)
-            else:
-                result, seconds = item
-                self._clock.add("camera", seconds)
-                self._camera_result(result)
+            with interrupt_held():
+                self._hand_over_one(item)
+
+    def _hand_over_one(self, item: RadarFrame | tuple[CameraOdometryResult, float]) -> None:
+        if isinstance(item, RadarFrame):
+            self._radar_frame(item)
+        else:
+            result, seconds = item
+            self._clock.add("camera", seconds)
+            self._camera_result(result)
 
     def _radar_frame(self, frame: RadarFrame) -> None:
         stages = self.stages

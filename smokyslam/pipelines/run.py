@@ -97,9 +97,14 @@ def _recording_setup(
 
 
 @contextlib.contextmanager
-def _dense_closed(estimate: RunEstimate) -> Iterator[None]:
+def _writing(out: OutputFolder, estimate: RunEstimate) -> Iterator[None]:
+    """Around the writing of a run's outputs: the up-sampling worker stops whatever happens,
+    and a Ctrl-C keeps what was written, the run marked interrupted."""
     try:
         yield
+    except KeyboardInterrupt:
+        estimate.interrupted = True
+        out.update_metrics({"interrupted": True})
     finally:
         if estimate.maps.dense is not None:
             estimate.maps.dense.close()
@@ -162,7 +167,7 @@ def run_reader(
         estimate = run_source(reader, source, config, on_progress, recorder, should_stop)
         if estimate.interrupted:  # marked first: a stop may cut the writing short
             out.update_metrics({"interrupted": True})
-        with _dense_closed(estimate):  # the up-sampling worker stops, whatever happens
+        with _writing(out, estimate):
             evaluation = evaluate_source(estimate, truth, source)
             if (errors := step_errors(estimate.step_pairs, truth)) is not None:
                 out.update_metrics({"step_errors": errors})
@@ -171,10 +176,10 @@ def run_reader(
             write_maps(out, source, estimate, evaluation, gt_map, observed, spec.camera_only)
             if (dense := estimate.maps.dense) is not None:
                 out.update_metrics({"upsample": dense.stats()})
-        record_results(recorder, estimate, evaluation)
-        if problems := reader.problems():
-            out.update_metrics({"log": problems})
-        write_figures(out, source, estimate, evaluation, truth, gt_map)
+            record_results(recorder, estimate, evaluation)
+            if problems := reader.problems():
+                out.update_metrics({"log": problems})
+            write_figures(out, source, estimate, evaluation, truth, gt_map)
         wall_s = time.perf_counter() - started
         duration_s = reader.summary().duration_s
         metrics = out.update_metrics(
