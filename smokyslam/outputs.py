@@ -8,10 +8,12 @@ a metrics key) survives into the new one.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -19,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from smokyslam.config import SmokySlamConfig, deep_update, write_config
-from smokyslam.errors import OutputError, SmokySlamError
+from smokyslam.errors import OutputError, RunInterruptedError, SmokySlamError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import save_map
 from smokyslam.mapping.render import render_map_png
@@ -182,6 +184,17 @@ class OutputFolder:
             )
         return yaml_path
 
+    @contextlib.contextmanager
+    def interrupt_kept(self) -> Iterator[None]:
+        """A Ctrl-C in this block (the outputs being written) keeps what was written: the
+        metrics are marked ``interrupted`` and it becomes a RunInterruptedError naming the
+        folder."""
+        try:
+            yield
+        except KeyboardInterrupt:
+            self.update_metrics({"interrupted": True})
+            raise RunInterruptedError(self.root) from None
+
     def start_run_log(self, level: int = logging.INFO) -> None:
         """Copy smokyslam's log records into ``run.log`` until :meth:`close`."""
         handler = logging.FileHandler(self.path(RUN_LOG_FILE), mode="w")
@@ -211,10 +224,10 @@ class OutputFolder:
         """Close the run log; a run that failed leaves its error in it (the console gets its
         one line from the command, not a second one from here)."""
         if exc is not None and self._log_handler is not None:
-            if isinstance(exc, SmokySlamError):
-                message, info = f"run failed: {exc}", None
-            elif isinstance(exc, KeyboardInterrupt):
+            if isinstance(exc, KeyboardInterrupt | RunInterruptedError):
                 message, info = "run interrupted", None
+            elif isinstance(exc, SmokySlamError):
+                message, info = f"run failed: {exc}", None
             else:
                 message, info = (
                     f"run failed: {type(exc).__name__}: {exc}",

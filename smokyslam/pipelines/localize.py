@@ -91,49 +91,50 @@ def localize_log(
         mcl = MonteCarloLocalizer(field, config.localize)
         stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start)
         estimate = RunLoop(stages, on_progress).run(reader.frames(stages.streams))
-        stamps_s, poses, _, particles = stages.localizer.track.arrays()
-        write_tum(out.path("trajectory.tum"), reader.log_time_s(stamps_s), poses)
-        if truth is not None:
-            write_tum(
-                out.path("ground_truth.tum"),
-                reader.log_time_s(truth.stamps_s),
-                truth.poses_world_base,
+        with out.interrupt_kept():  # a Ctrl-C while writing keeps what was written
+            stamps_s, poses, _, particles = stages.localizer.track.arrays()
+            write_tum(out.path("trajectory.tum"), reader.log_time_s(stamps_s), poses)
+            if truth is not None:
+                write_tum(
+                    out.path("ground_truth.tum"),
+                    reader.log_time_s(truth.stamps_s),
+                    truth.poses_world_base,
+                )
+            metrics = localization_metrics(stamps_s, poses, particles, truth, config.localize)
+            plot_localization(
+                out.path("localization.png"),
+                used.cells,
+                saved.spec,
+                poses,
+                stages.localizer.first_particles,
+                mcl.particles,
+                truth,
+                _title(start, metrics),
             )
-        metrics = localization_metrics(stamps_s, poses, particles, truth, config.localize)
-        plot_localization(
-            out.path("localization.png"),
-            used.cells,
-            saved.spec,
-            poses,
-            stages.localizer.first_particles,
-            mcl.particles,
-            truth,
-            _title(start, metrics),
-        )
-        recorder.log_result(np.zeros(3), stamps_s, poses)  # the map frame is the world's
-        recorder.close()
-        duration_s = reader.summary().duration_s
-        wall_s = time.perf_counter() - started
-        extra: dict[str, Any] = {"interrupted": True} if estimate.interrupted else {}
-        if problems := reader.problems():
-            extra["log"] = problems
-        everything = out.update_metrics(
-            {
-                "localization": {
-                    "map": str(Path(map_yaml)),
-                    "map_densified": used.densified,
-                    "map_isolated_share": used.isolated_share,
-                    "mode": start.mode,
-                    "start": _pose_json(start.pose_map_base),
-                    **metrics,
-                },
-                "odometry": {"source": SOURCE, "lost_frames": int(estimate.lost.sum())},
-                "wall_s": wall_s,
-                "duration_s": duration_s,
-                "realtime_factor": duration_s / wall_s if wall_s > 0 else None,
-                **extra,
-            }
-        )
+            recorder.log_result(np.zeros(3), stamps_s, poses)  # the map frame is the world's
+            recorder.close()
+            duration_s = reader.summary().duration_s
+            wall_s = time.perf_counter() - started
+            extra: dict[str, Any] = {"interrupted": True} if estimate.interrupted else {}
+            if problems := reader.problems():
+                extra["log"] = problems
+            everything = out.update_metrics(
+                {
+                    "localization": {
+                        "map": str(Path(map_yaml)),
+                        "map_densified": used.densified,
+                        "map_isolated_share": used.isolated_share,
+                        "mode": start.mode,
+                        "start": _pose_json(start.pose_map_base),
+                        **metrics,
+                    },
+                    "odometry": {"source": SOURCE, "lost_frames": int(estimate.lost.sum())},
+                    "wall_s": wall_s,
+                    "duration_s": duration_s,
+                    "realtime_factor": duration_s / wall_s if wall_s > 0 else None,
+                    **extra,
+                }
+            )
     logger.info("localized %d frames of %s in %.1f s", len(stamps_s), reader.path, wall_s)
     if estimate.interrupted:
         raise RunInterruptedError(out.root)

@@ -97,14 +97,9 @@ def _recording_setup(
 
 
 @contextlib.contextmanager
-def _writing(out: OutputFolder, estimate: RunEstimate) -> Iterator[None]:
-    """Around the writing of a run's outputs: the up-sampling worker stops whatever happens,
-    and a Ctrl-C keeps what was written, the run marked interrupted."""
+def _dense_closed(estimate: RunEstimate) -> Iterator[None]:
     try:
         yield
-    except KeyboardInterrupt:
-        estimate.interrupted = True
-        out.update_metrics({"interrupted": True})
     finally:
         if estimate.maps.dense is not None:
             estimate.maps.dense.close()
@@ -167,7 +162,7 @@ def run_reader(
         estimate = run_source(reader, source, config, on_progress, recorder, should_stop)
         if estimate.interrupted:  # marked first: a stop may cut the writing short
             out.update_metrics({"interrupted": True})
-        with _writing(out, estimate):
+        with _dense_closed(estimate), out.interrupt_kept():  # what is written is kept
             evaluation = evaluate_source(estimate, truth, source)
             if (errors := step_errors(estimate.step_pairs, truth)) is not None:
                 out.update_metrics({"step_errors": errors})
