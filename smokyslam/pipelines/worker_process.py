@@ -67,9 +67,9 @@ def sigint_ignored() -> Iterator[None]:
 
 @contextlib.contextmanager
 def interrupt_held() -> Iterator[None]:
-    """A Ctrl-C during this block (workers starting) is held and raised as KeyboardInterrupt
-    when it ends, not in the middle of a half-started pool or cluster. Main thread only;
-    elsewhere nothing changes."""
+    """A Ctrl-C during this block is held and raised as KeyboardInterrupt when it ends, not
+    in the middle of a half-started pool or cluster, or of a frame half-way through the run
+    loop's stages. Main thread only; elsewhere nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
