@@ -186,9 +186,8 @@ class OutputFolder:
 
     @contextlib.contextmanager
     def interrupt_kept(self) -> Iterator[None]:
-        """A Ctrl-C in this block (the outputs being written) keeps what was written: the
-        metrics are marked ``interrupted`` and it becomes a RunInterruptedError naming the
-        folder."""
+        """A Ctrl-C in this block keeps what was written: the metrics are marked
+        ``interrupted`` and it becomes a RunInterruptedError naming the folder."""
         try:
             yield
         except KeyboardInterrupt:

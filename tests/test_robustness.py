@@ -333,6 +333,20 @@ def test_a_ctrl_c_inside_a_stage_waits_until_the_frame_has_gone_through_every_st
     assert len(estimate.health.stamps_s) == len(estimate.stamps_s) == len(calls)
 
 
+def test_a_first_ctrl_c_is_noted_and_a_second_is_raised_at_once():
+    from smokyslam.pipelines.worker_process import DeferredCtrlC
+
+    before = signal.getsignal(signal.SIGINT)
+    with DeferredCtrlC() as ctrl_c:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handler runs between bytecodes: no exception here
+        assert ctrl_c.pressed
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1.0)
+    assert signal.getsignal(signal.SIGINT) is before
+
+
 def test_a_ctrl_c_while_the_outputs_are_written_keeps_what_was_written(
     tiny_logs, tmp_path, monkeypatch
 ):

@@ -35,6 +35,7 @@ from smokyslam.mapio import load_map
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunLoop
 from smokyslam.pipelines.sources import build_stages, get_source
+from smokyslam.pipelines.worker_process import DeferredCtrlC
 from smokyslam.types import RadarScan
 from smokyslam.viz.recorder import RecordingSetup, open_recorder
 
@@ -78,7 +79,7 @@ def localize_log(
     saved = load_map(map_yaml)
     used = localization_map(saved.cells, saved.spec, config)
     field = LikelihoodField(used.cells, saved.spec, config.localize)  # an empty map: now
-    with OutputFolder(out_dir, overwrite=overwrite) as out:
+    with OutputFolder(out_dir, overwrite=overwrite) as out, out.interrupt_kept():
         out.write_config(config)
         reader = open_log(log_path, config, require=get_source(SOURCE).requires)
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
@@ -91,7 +92,7 @@ def localize_log(
         mcl = MonteCarloLocalizer(field, config.localize)
         stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start)
         estimate = RunLoop(stages, on_progress).run(reader.frames(stages.streams))
-        with out.interrupt_kept():  # a Ctrl-C while writing keeps what was written
+        with DeferredCtrlC():  # written whole on a first Ctrl-C; a second one stops it
             stamps_s, poses, _, particles = stages.localizer.track.arrays()
             write_tum(out.path("trajectory.tum"), reader.log_time_s(stamps_s), poses)
             if truth is not None:

@@ -35,7 +35,7 @@ from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage
 from smokyslam.pipelines.health import RunHealth
 from smokyslam.pipelines.ordering import InOrder, StageClock
-from smokyslam.pipelines.worker_process import interrupt_held
+from smokyslam.pipelines.worker_process import DeferredCtrlC
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan, StepPairs
 from smokyslam.viz.recorder import Due, FrameRecord, Recorder, RunSnapshot
@@ -140,24 +140,26 @@ class RunLoop:
         on the way out, whatever happens). Ctrl-C stops reading: the estimate then holds what
         was processed so far, with ``interrupted`` set."""
         interrupted = False
-        try:
+        # A Ctrl-C is acted on between frames: the frame in hand goes through every stage (the
+        # graph, the maps and the health agree), and no wait on a worker is cut short.
+        with DeferredCtrlC() as ctrl_c:
             try:
-                for frame in frames:
-                    if self._should_stop():
-                        raise KeyboardInterrupt  # a requested stop is a Ctrl-C
-                    with interrupt_held():
+                try:
+                    for frame in frames:
+                        if ctrl_c.pressed or self._should_stop():
+                            raise KeyboardInterrupt  # a requested stop is a Ctrl-C
                         self._read(frame)
-                    self._hand_over(keep=MAX_LAG)
-                self._finish()
-                if stamps := self._health.stamps_s:  # the final graph and maps, when recorded
-                    self._snapshot(stamps[-1], self.stages.recorder.due(float("inf")))
-            except KeyboardInterrupt:
-                interrupted = True
-                logger.info("interrupted: keeping what was processed so far")
-                self._hand_over(keep=len(self._order) + 1)  # what is done, without waiting
-        finally:
-            if self.stages.camera is not None:
-                self.stages.camera.shutdown()
+                        self._hand_over(keep=MAX_LAG)
+                    self._finish()
+                    if stamps := self._health.stamps_s:  # the final graph and maps
+                        self._snapshot(stamps[-1], self.stages.recorder.due(float("inf")))
+                except KeyboardInterrupt:
+                    interrupted = True
+                    logger.info("interrupted: keeping what was processed so far")
+                    self._hand_over(keep=len(self._order) + 1)  # what is done, not waiting
+            finally:
+                if self.stages.camera is not None:
+                    self.stages.camera.shutdown()
         estimate = self._estimate()
         estimate.interrupted = interrupted
         return estimate
@@ -181,26 +183,18 @@ class RunLoop:
         self._hand_over(keep=0)
         if self.stages.camera_steps is not None:
             for step in self.stages.camera_steps.flush():
-                with interrupt_held():
-                    self._camera_step(step)
+                self._camera_step(step)
 
     # ------------------------------------------------------------------ handing over
 
     def _hand_over(self, keep: int) -> None:
-        """The front of the queue through the stages. A Ctrl-C waits until the item in hand
-        has gone through all of them (the maps, the graph and the health then agree), but not
-        for a camera frame still tracking."""
         for item in self._order.ready(keep):
-            with interrupt_held():
-                self._hand_over_one(item)
-
-    def _hand_over_one(self, item: RadarFrame | tuple[CameraOdometryResult, float]) -> None:
-        if isinstance(item, RadarFrame):
-            self._radar_frame(item)
-        else:
-            result, seconds = item
-            self._clock.add("camera", seconds)
-            self._camera_result(result)
+            if isinstance(item, RadarFrame):
+                self._radar_frame(item)
+            else:
+                result, seconds = item
+                self._clock.add("camera", seconds)
+                self._camera_result(result)
 
     def _radar_frame(self, frame: RadarFrame) -> None:
         stages = self.stages

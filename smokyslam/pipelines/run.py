@@ -31,6 +31,7 @@ from smokyslam.pipelines.run_outputs import (
     write_trajectory,
 )
 from smokyslam.pipelines.sources import SOURCES, build_stages, get_source
+from smokyslam.pipelines.worker_process import DeferredCtrlC
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
 from smokyslam.viz.recorder import NullRecorder, Recorder, RecordingSetup, open_recorder
 
@@ -153,7 +154,7 @@ def run_reader(
     opened once the output folder is claimed."""
     spec = get_source(source)
     started = time.perf_counter()
-    with OutputFolder(out_dir, overwrite=overwrite) as out:
+    with OutputFolder(out_dir, overwrite=overwrite) as out, out.interrupt_kept():
         out.write_config(config)
         reader = open_reader()
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
@@ -162,7 +163,9 @@ def run_reader(
         estimate = run_source(reader, source, config, on_progress, recorder, should_stop)
         if estimate.interrupted:  # marked first: a stop may cut the writing short
             out.update_metrics({"interrupted": True})
-        with _dense_closed(estimate), out.interrupt_kept():  # what is written is kept
+        # Written whole on a first Ctrl-C (no wait on the up-sampler cut short); a second
+        # one stops the writing, keeping what was written.
+        with _dense_closed(estimate), DeferredCtrlC():
             evaluation = evaluate_source(estimate, truth, source)
             if (errors := step_errors(estimate.step_pairs, truth)) is not None:
                 out.update_metrics({"step_errors": errors})

@@ -23,6 +23,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
 WATCH_S = 0.5
 
@@ -67,9 +68,9 @@ def sigint_ignored() -> Iterator[None]:
 
 @contextlib.contextmanager
 def interrupt_held() -> Iterator[None]:
-    """A Ctrl-C during this block is held and raised as KeyboardInterrupt when it ends, not
-    in the middle of a half-started pool or cluster, or of a frame half-way through the run
-    loop's stages. Main thread only; elsewhere nothing changes."""
+    """A Ctrl-C during this block (workers starting) is held and raised as KeyboardInterrupt
+    when it ends, not in the middle of a half-started pool or cluster. Main thread only;
+    elsewhere nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -81,6 +82,37 @@ def interrupt_held() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
     if pressed:
         raise KeyboardInterrupt
+
+
+class DeferredCtrlC:
+    """While installed (``with``), a first Ctrl-C is only noted in :attr:`pressed`, for the
+    code to act on where it is safe (the run loop between frames); a second one is raised
+    at once, to force a stop. A KeyboardInterrupt raised at an arbitrary point can land in a
+    wait on a worker's result and leave that future's lock held: the executor's thread then
+    waits for the lock forever and the process never exits (seen once in ten Ctrl-C'd fused
+    runs). Only on the main thread of a process that heeds Ctrl-C; elsewhere (a worker
+    that leaves Ctrl-C to its parent, a thread) nothing changes and ``pressed`` stays
+    False."""
+
+    def __init__(self) -> None:
+        self.pressed = False
+        self._previous: Any = None
+
+    def __enter__(self) -> DeferredCtrlC:
+        heeded = signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
+        if heeded and threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+    def _on_sigint(self, signum: int, frame: object) -> None:
+        if self.pressed:
+            raise KeyboardInterrupt
+        self.pressed = True
 
 
 def worker_context() -> multiprocessing.context.BaseContext:
