@@ -333,6 +333,24 @@ def test_a_ctrl_c_inside_a_stage_waits_until_the_frame_has_gone_through_every_st
     assert len(estimate.health.stamps_s) == len(estimate.stamps_s) == len(calls)
 
 
+def test_a_ctrl_c_while_the_command_line_loads_is_one_line(monkeypatch, capsys):
+    import builtins
+
+    from smokyslam import console
+
+    real_import = builtins.__import__
+
+    def interrupted_import(name, *args, **kwargs):
+        if name == "smokyslam.cli":
+            raise KeyboardInterrupt
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", interrupted_import)
+    with pytest.raises(SystemExit) as exited:
+        console.main()
+    assert exited.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+
 def test_a_first_ctrl_c_is_noted_and_a_second_is_raised_at_once():
     from smokyslam.pipelines.worker_process import DeferredCtrlC
 
@@ -340,10 +358,16 @@ def test_a_first_ctrl_c_is_noted_and_a_second_is_raised_at_once():
     with DeferredCtrlC() as ctrl_c:
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(0.05)  # the handler runs between bytecodes: no exception here
-        assert ctrl_c.pressed
+        assert ctrl_c.take() and not ctrl_c.take()
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(1.0)
+    assert signal.getsignal(signal.SIGINT) is before
+    with pytest.raises(KeyboardInterrupt), DeferredCtrlC():  # noted, never taken
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
     assert signal.getsignal(signal.SIGINT) is before
 
 

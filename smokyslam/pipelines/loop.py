@@ -146,11 +146,13 @@ class RunLoop:
             try:
                 try:
                     for frame in frames:
-                        if ctrl_c.pressed or self._should_stop():
+                        if ctrl_c.take() or self._should_stop():
                             raise KeyboardInterrupt  # a requested stop is a Ctrl-C
                         self._read(frame)
                         self._hand_over(keep=MAX_LAG)
                     self._finish()
+                    if ctrl_c.take():
+                        raise KeyboardInterrupt
                     if stamps := self._health.stamps_s:  # the final graph and maps
                         self._snapshot(stamps[-1], self.stages.recorder.due(float("inf")))
                 except KeyboardInterrupt:
@@ -160,6 +162,7 @@ class RunLoop:
             finally:
                 if self.stages.camera is not None:
                     self.stages.camera.shutdown()
+                interrupted |= ctrl_c.take()  # one while stopping: the estimate is kept
         estimate = self._estimate()
         estimate.interrupted = interrupted
         return estimate

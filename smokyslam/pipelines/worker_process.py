@@ -85,18 +85,23 @@ def interrupt_held() -> Iterator[None]:
 
 
 class DeferredCtrlC:
-    """While installed (``with``), a first Ctrl-C is only noted in :attr:`pressed`, for the
-    code to act on where it is safe (the run loop between frames); a second one is raised
-    at once, to force a stop. A KeyboardInterrupt raised at an arbitrary point can land in a
-    wait on a worker's result and leave that future's lock held: the executor's thread then
-    waits for the lock forever and the process never exits (seen once in ten Ctrl-C'd fused
-    runs). Only on the main thread of a process that heeds Ctrl-C; elsewhere (a worker
-    that leaves Ctrl-C to its parent, a thread) nothing changes and ``pressed`` stays
-    False."""
+    """While installed (``with``), a first Ctrl-C is only noted, for the code to act on where
+    it is safe (:meth:`take`: the run loop asks between frames); a second one is raised at
+    once, to force a stop; one noted and not taken is raised when the block ends. A
+    KeyboardInterrupt raised at an arbitrary point can land in a wait on a worker's result
+    and leave that future's lock held: the executor's thread then waits for the lock forever
+    and the process never exits (seen once in ten Ctrl-C'd fused runs). Only on the main
+    thread of a process that heeds Ctrl-C; elsewhere (a worker that leaves Ctrl-C to its
+    parent, a thread) nothing changes."""
 
     def __init__(self) -> None:
-        self.pressed = False
+        self._pressed = False
         self._previous: Any = None
+
+    def take(self) -> bool:
+        """Whether a Ctrl-C came since the last call (it is the caller's to act on now)."""
+        pressed, self._pressed = self._pressed, False
+        return pressed
 
     def __enter__(self) -> DeferredCtrlC:
         heeded = signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
@@ -104,15 +109,18 @@ class DeferredCtrlC:
             self._previous = signal.signal(signal.SIGINT, self._on_sigint)
         return self
 
-    def __exit__(self, *exc_info: object) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, *exc_info: object) -> None:
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             self._previous = None
+        if self.take() and exc_type is None:
+            raise KeyboardInterrupt
 
     def _on_sigint(self, signum: int, frame: object) -> None:
-        if self.pressed:
+        if self._pressed:
+            self._pressed = False  # acted on here
             raise KeyboardInterrupt
-        self.pressed = True
+        self._pressed = True
 
 
 def worker_context() -> multiprocessing.context.BaseContext:
