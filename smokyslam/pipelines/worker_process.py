@@ -96,6 +96,7 @@ class DeferredCtrlC:
 
     def __init__(self) -> None:
         self._pressed = False
+        self._installed = False
         self._previous: Any = None
 
     def take(self) -> bool:
@@ -107,12 +108,13 @@ class DeferredCtrlC:
         heeded = signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
         if heeded and threading.current_thread() is threading.main_thread():
             self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+            self._installed = True
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, *exc_info: object) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        if self._installed:  # the previous handler may be None (one not set from Python)
+            signal.signal(signal.SIGINT, self._previous or signal.SIG_DFL)
+            self._installed = False
         if self.take() and exc_type is None:
             raise KeyboardInterrupt
 
