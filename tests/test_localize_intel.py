@@ -6,8 +6,9 @@ within +-60 deg a scan) from a start 1 m and 10 deg off. The second half walks s
 first half mapped poorly: there its scans fit the map 25-30 % worse than before, for about 30
 scans. Measured with filter seeds 0-2: with injection from a 20 % fall of the fit the filter
 searched the whole building there, settled in wrong places and stayed lost (17-21 % of the
-scans more than 0.5 m off, the worst 23-25 m); with injection from 35 %, 3.5-4.4 % (the
-scouts stray for a few scans and come back), median error 0.12 m.
+scans more than 0.5 m off, the worst 23-25 m); with injection from a 35 % fall while
+tracking (``INJECT_FLOOR_TRACKING``), 3.5-4.4 % (the cloud spreads there, and its heaviest
+mode strays for a few scans), median error 0.12 m.
 """
 
 import gzip
