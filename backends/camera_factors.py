@@ -27,7 +27,12 @@ from smokyslam.backends.camera_gate import (
     get_camera_gate,
     inflate_covariance,
 )
-from smokyslam.backends.scale import ScaleEstimator, get_scale_estimator, metric_relative_pose
+from smokyslam.backends.scale import (
+    ScaleEstimator,
+    SharedScale,
+    get_scale_estimator,
+    metric_relative_pose,
+)
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.frontends.camera.pose import planar_from_camera
 from smokyslam.geometry import (
@@ -90,7 +95,7 @@ class CameraFactorMaker:
         self,
         T_base_camera: np.ndarray,
         gate: CameraGate,
-        scale: ScaleEstimator,
+        scale: ScaleEstimator | SharedScale,
         covariance_scale: float,
         consistency_chi2: float,
     ) -> None:
@@ -110,6 +115,11 @@ class CameraFactorMaker:
     def latest_stamp_s(self) -> float:
         """Stamp of the newest camera frame (-inf before the first)."""
         return self._samples[-1].stamp_s if self._samples else -np.inf
+
+    @property
+    def scale(self) -> ScaleEstimator | SharedScale:
+        """The windowed metric scale its factors use."""
+        return self._scale
 
     @property
     def scale_m(self) -> float | None:
@@ -208,13 +218,17 @@ class CameraFactorMaker:
 
 
 def get_camera_factor_maker(
-    backend: BackendConfig, slam: SlamConfig, T_base_camera: np.ndarray
+    backend: BackendConfig,
+    slam: SlamConfig,
+    T_base_camera: np.ndarray,
+    scale: ScaleEstimator | SharedScale | None = None,
 ) -> CameraFactorMaker:
-    """The camera factor maker of the backend and slam config sections."""
+    """The camera factor maker of the backend and slam config sections; ``scale``: one to
+    use instead of its own (``backend.scale``)."""
     return CameraFactorMaker(
         T_base_camera,
         get_camera_gate(backend.camera_gate),
-        get_scale_estimator(backend.scale),
+        scale if scale is not None else get_scale_estimator(backend.scale),
         slam.camera_covariance_scale,
         slam.camera_consistency_chi2,
     )

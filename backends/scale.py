@@ -90,6 +90,30 @@ class ScaleEstimator:
         return ScaleEstimate(scale, float(sigma / scale), n)
 
 
+class SharedScale:
+    """Another estimator's scale, read and never fed (same verbs as :class:`ScaleEstimator`).
+
+    For steps too short to carry a scale themselves: the localizer's camera steps span one
+    radar frame (3-5 cm at a walk, under ``min_translation_m``), so they take the scale that
+    SLAM's keyframe pairs (0.2 m and more) keep. The source resets itself when its camera
+    comes back from a loss."""
+
+    def __init__(self, source: ScaleEstimator) -> None:
+        self._source = source
+
+    def reset(self) -> None:
+        """Nothing to forget: the source keeps the pairs."""
+
+    def update(
+        self, camera_translation: np.ndarray, metric_translation_m: np.ndarray
+    ) -> ScaleEstimate | None:
+        """The source's current estimate; the pair is not added."""
+        return self._source.estimate()
+
+    def estimate(self) -> ScaleEstimate | None:
+        return self._source.estimate()
+
+
 def metric_relative_pose(
     delta: np.ndarray, covariance: np.ndarray, estimate: ScaleEstimate
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -26,6 +26,7 @@ from smokyslam.backends.keyframes import Keyframe, Keyframer, get_keyframe_gate
 from smokyslam.backends.loop_closure import get_loop_closer
 from smokyslam.backends.noise import RobustKernel
 from smokyslam.backends.pose_graph import get_pose_graph
+from smokyslam.backends.scale import ScaleEstimator
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.geometry import se2_compose
@@ -142,6 +143,11 @@ class SlamBackend:
     def step_pairs(self) -> StepPairs | None:
         """The radar and camera steps of the keyframe pairs (None without camera factors)."""
         return self._camera.steps if self._camera is not None else None
+
+    @property
+    def camera_scale(self) -> ScaleEstimator | None:
+        """The camera factors' windowed metric scale (None without camera factors)."""
+        return self._camera.scale if self._camera is not None else None
 
     @property
     def camera_scale_m(self) -> float | None:

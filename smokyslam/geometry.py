@@ -283,3 +283,18 @@ class GridSpec:
             y0,
             y0 + self.shape[0] * self.resolution_m,
         )
+
+
+def se2_fuse(
+    a: np.ndarray, cov_a: np.ndarray, b: np.ndarray, cov_b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two independent estimates of one relative pose, each with its (3, 3) tangent
+    (right-perturbation) covariance, fused by their information: the update of ``a`` by
+    ``b`` as a measurement, ``a Exp(K log(a^-1 b))`` with ``K = cov_a (cov_a + cov_b)^-1``
+    (``b``'s covariance taken in ``a``'s tangent, exact to first order for close estimates).
+    Returns the fused pose and ``(I - K) cov_a``."""
+    cov_a, cov_b = np.asarray(cov_a, dtype=float), np.asarray(cov_b, dtype=float)
+    gain = np.linalg.solve((cov_a + cov_b).T, cov_a.T).T
+    innovation = se2_log(se2_between(np.asarray(a, dtype=float), np.asarray(b, dtype=float)))
+    fused_cov = (np.eye(3) - gain) @ cov_a
+    return se2_compose(a, se2_exp(gain @ innovation)), 0.5 * (fused_cov + fused_cov.T)

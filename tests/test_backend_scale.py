@@ -6,6 +6,7 @@ import pytest
 from smokyslam.backends.scale import (
     ScaleEstimate,
     ScaleEstimator,
+    SharedScale,
     get_scale_estimator,
     metric_relative_pose,
 )
@@ -92,3 +93,18 @@ def test_short_motions_carry_no_scale():
     estimator = get_scale_estimator(ScaleConfig(min_pairs=2, min_translation_m=0.05))
     for _ in range(5):
         assert estimator.update(np.array([0.01, 0.0]), np.array([0.01, 0.0])) is None
+
+
+def test_a_shared_scale_reads_its_source_and_never_feeds_it():
+    rng = np.random.default_rng(3)
+    source = get_scale_estimator(ScaleConfig())
+    shared = SharedScale(source)
+    assert shared.update(np.array([0.4, 0.0]), np.array([0.1, 0.0])) is None  # none yet
+    truth = feed(source, motions(rng, 12), 0.25, rng)
+    assert truth is not None and truth.scale == pytest.approx(0.25, rel=0.06)
+    # A short step of another ratio changes nothing: the estimate is the source's.
+    for _ in range(20):
+        estimate = shared.update(np.array([0.1, 0.0]), np.array([0.09, 0.0]))
+    assert estimate == truth == source.estimate()
+    shared.reset()
+    assert source.estimate() == truth

@@ -90,3 +90,29 @@ def test_covering_grid_keeps_the_lattice_and_spans_both():
     assert x0 <= -0.33 and x1 >= 2.0 - 1e-9 and y0 <= 0.0 and y1 >= 2.52 - 1e-9
     assert cover.shape == (26, 24)
     assert spec.covering(spec) == spec
+
+
+def test_se2_fuse_weighs_two_estimates_by_their_covariances():
+    from smokyslam.geometry import se2_fuse
+
+    a, b = np.array([1.0, 0.0, 0.1]), np.array([1.2, 0.1, 0.14])
+    cov = np.diag([0.01, 0.01, 0.001])
+    fused, fused_cov = se2_fuse(a, cov, b, cov)
+    # Equal covariances: halfway (up to the curvature of SE(2) over this small difference),
+    # and half the covariance.
+    np.testing.assert_allclose(fused, [1.1, 0.05, 0.12], atol=5e-3)
+    np.testing.assert_allclose(fused_cov, cov / 2, atol=1e-12)
+    # A much more certain b wins; only the certain axis moves when one axis alone is certain.
+    np.testing.assert_allclose(se2_fuse(a, cov, b, cov * 1e-6)[0], b, atol=1e-4)
+    a, b = np.array([1.0, 0.0, 0.0]), np.array([1.2, 0.1, 0.04])  # a's axes are the world's
+    fused_x, _ = se2_fuse(a, cov, b, np.diag([1e-8, 1.0, 1.0]))  # b knows x only
+    np.testing.assert_allclose(fused_x, [1.2, 0.0, 0.0], atol=0.005)
+
+
+def test_se2_fuse_averages_headings_across_the_wrap():
+    from smokyslam.geometry import se2_fuse
+
+    cov = np.diag([0.01, 0.01, 0.01])
+    a, b = np.array([0.0, 0.0, np.pi - 0.02]), np.array([0.0, 0.0, -np.pi + 0.02])
+    fused, _ = se2_fuse(a, cov, b, cov)
+    assert abs(abs(fused[2]) - np.pi) < 1e-9  # not 0, the naive mean of the two numbers

@@ -1,7 +1,9 @@
-"""``smokyslam localize``: Monte Carlo localization of a log in a saved map."""
+"""``smokyslam localize``: Monte Carlo localization of a log, or of a live TI radar, in a
+saved map."""
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 from typing import Annotated, get_args
@@ -11,11 +13,19 @@ import typer
 
 from smokyslam.cli.options import (
     CalibrationOption,
+    CameraCfgOption,
+    CameraOption,
     ConfigOption,
+    DurationOption,
+    LiveOption,
     OverwriteOption,
+    RadarCfgOption,
+    RadarCliOption,
+    RadarDataOption,
     RerunOption,
     RerunSpawnOption,
     SmokeOption,
+    check_live,
     check_rerun,
     echo_recording,
     effective_config,
@@ -44,8 +54,11 @@ def localize(
     map_yaml: Annotated[
         Path, typer.Argument(help="A map_server map (sparse, dense, fused, or a floor plan).")
     ],
-    log: Annotated[Path, typer.Argument(help="A log with radar scans (.bag, .mcap, .db3, .log).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")],
+    log: Annotated[
+        Path | None,
+        typer.Argument(help="A log with radar scans (.bag, .mcap, .db3, .log; none with --live)."),
+    ] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Output folder.")] = None,
     init: Annotated[
         str | None,
         typer.Option(help="Tracking from this map pose: x,y,yaw (m, m, degrees)."),
@@ -70,15 +83,26 @@ def localize(
         ),
     ] = None,
     smoke: SmokeOption = None,
+    live: LiveOption = False,
+    radar_cli: RadarCliOption = None,
+    radar_data: RadarDataOption = None,
+    radar_cfg: RadarCfgOption = None,
+    duration: DurationOption = None,
+    camera: CameraOption = None,
+    camera_cfg: CameraCfgOption = None,
     rerun: RerunOption = None,
     rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
-    """Find the rig in a saved map along a log: trajectory.tum (map frame), metrics.json
-    (errors against ground truth, time to converge, particle counts), localization.png."""
+    """Find the rig in a saved map along a log, or live on a TI radar: trajectory.tum (map
+    frame), metrics.json (errors against ground truth, time to converge, particle counts),
+    localization.png."""
     cfg = effective_config(config, smoke_overrides(smoke), calibration)
+    if out is None:
+        raise ConfigError("--out is required")
+    check_live(live, log, radar_cli, radar_data, radar_cfg)
     if densify is not None:
         if densify not in DENSIFY:
             raise ConfigError(f"--densify must be one of {', '.join(DENSIFY)}, got '{densify}'")
@@ -96,11 +120,17 @@ def localize(
         init=parse_pose(init, "--init") if init is not None else None,
         init_offset=parse_pose(init_offset, "--init-offset") if init_offset else None,
     )
-    duration_s = open_log(log, cfg).summary().duration_s
-    with progress_bar(f"localizing {log.name}", duration_s) as update:
-        result = localize_log(
-            map_yaml,
-            log,
+    if live:  # the live sensors, or the log: the rest is the same
+        from smokyslam.pipelines.live import LiveSensors, localize_live
+
+        sensors = LiveSensors(radar_cli, radar_data, radar_cfg, duration, camera, camera_cfg)
+        label, duration_s = "localizing live", duration or 0.0
+        localize_source = functools.partial(localize_live, map_yaml, sensors)
+    else:
+        label, duration_s = f"localizing {log.name}", open_log(log, cfg).summary().duration_s
+        localize_source = functools.partial(localize_log, map_yaml, log)
+    with progress_bar(label, duration_s) as update:
+        result = localize_source(
             cfg,
             out,
             request,

@@ -57,6 +57,41 @@ RerunSpawnOption = Annotated[
 OverwriteOption = Annotated[
     bool, typer.Option("--overwrite", help="Replace the outputs of an earlier run in --out.")
 ]
+LiveOption = Annotated[
+    bool, typer.Option("--live", help="Run on a live TI radar instead of a log.")
+]
+RadarCliOption = Annotated[
+    str | None, typer.Option("--radar-cli", help="Live: the radar's CLI port or URL.")
+]
+RadarDataOption = Annotated[
+    str | None, typer.Option("--radar-data", help="Live: its data port or URL.")
+]
+RadarCfgOption = Annotated[
+    Path | None, typer.Option("--radar-cfg", help="Live: the .cfg to configure it.")
+]
+DurationOption = Annotated[
+    float | None, typer.Option(min=0.0, help="Live: seconds to run (default: until Ctrl-C).")
+]
+CameraOption = Annotated[
+    str | None, typer.Option(help="Live: a camera (OpenCV device index, URL or video).")
+]
+CameraCfgOption = Annotated[
+    Path | None, typer.Option("--camera-cfg", help="Live: the camera's intrinsics YAML.")
+]
+
+
+def check_live(
+    live: bool,
+    log: Path | None,
+    radar_cli: str | None,
+    radar_data: str | None,
+    radar_cfg: Path | None,
+) -> None:
+    """A log, or ``--live`` with the radar's two ports and its .cfg: ConfigError otherwise."""
+    if live == (log is not None):
+        raise ConfigError("give a LOG, or --live with --radar-cli, --radar-data and --radar-cfg")
+    if live and None in (radar_cli, radar_data, radar_cfg):
+        raise ConfigError("--live needs --radar-cli, --radar-data and --radar-cfg")
 
 
 def check_rerun(rerun: Path | None, spawn: bool) -> None:

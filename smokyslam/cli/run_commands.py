@@ -10,14 +10,22 @@ import typer
 
 from smokyslam.cli.options import (
     CalibrationOption,
+    CameraCfgOption,
     CameraNoiseOption,
+    CameraOption,
     ConfigOption,
+    DurationOption,
     HazeOption,
+    LiveOption,
     OverwriteOption,
+    RadarCfgOption,
+    RadarCliOption,
+    RadarDataOption,
     RadarLossOption,
     RerunOption,
     RerunSpawnOption,
     SmokeOption,
+    check_live,
     check_rerun,
     echo_recording,
     effective_config,
@@ -43,27 +51,13 @@ def run(
     rerun: RerunOption = None,
     rerun_spawn: RerunSpawnOption = False,
     calibration: CalibrationOption = None,
-    live: Annotated[
-        bool, typer.Option("--live", help="Run on a live TI radar instead of a log.")
-    ] = False,
-    radar_cli: Annotated[
-        str | None, typer.Option("--radar-cli", help="Live: the radar's CLI port or URL.")
-    ] = None,
-    radar_data: Annotated[
-        str | None, typer.Option("--radar-data", help="Live: its data port or URL.")
-    ] = None,
-    radar_cfg: Annotated[
-        Path | None, typer.Option("--radar-cfg", help="Live: the .cfg to configure it.")
-    ] = None,
-    duration: Annotated[
-        float | None, typer.Option(min=0.0, help="Live: seconds to run (default: until Ctrl-C).")
-    ] = None,
-    camera: Annotated[
-        str | None, typer.Option(help="Live: a camera (OpenCV device index, URL or video).")
-    ] = None,
-    camera_cfg: Annotated[
-        Path | None, typer.Option("--camera-cfg", help="Live: the camera's intrinsics YAML.")
-    ] = None,
+    live: LiveOption = False,
+    radar_cli: RadarCliOption = None,
+    radar_data: RadarDataOption = None,
+    radar_cfg: RadarCfgOption = None,
+    duration: DurationOption = None,
+    camera: CameraOption = None,
+    camera_cfg: CameraCfgOption = None,
     overwrite: OverwriteOption = False,
     config: ConfigOption = None,
 ) -> None:
@@ -74,10 +68,7 @@ def run(
     )
     if out is None:
         raise ConfigError("--out is required")
-    if live == (log is not None):
-        raise ConfigError("give a LOG, or --live with --radar-cli, --radar-data and --radar-cfg")
-    if live and None in (radar_cli, radar_data, radar_cfg):
-        raise ConfigError("--live needs --radar-cli, --radar-data and --radar-cfg")
+    check_live(live, log, radar_cli, radar_data, radar_cfg)
     check_rerun(rerun, rerun_spawn)
     from smokyslam.pipelines.sources import get_source
     from smokyslam.progress import progress_bar

@@ -39,6 +39,11 @@ class LocalizeConfig(_Section):
         description="resample when the effective sample size falls below"
         " this share of the particles",
     )
+    camera_motion: bool = Field(
+        True,
+        description="with a camera in the log, its odometry joins the motion steps while it is"
+        " healthy (made metric, checked and weighed as SLAM's camera factors are)",
+    )
     hit_sigma_m: float = Field(0.3, gt=0.0, description="likelihood field: wall distance sigma")
     z_hit: float = Field(0.8, ge=0.0, le=1.0, description="likelihood field: share of hits")
     z_rand: float = Field(0.2, ge=0.0, le=1.0, description="likelihood field: share of clutter")

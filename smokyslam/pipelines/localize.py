@@ -1,10 +1,11 @@
-"""``smokyslam localize``: find the rig in a saved map, with the run loop's radar stages.
+"""``smokyslam localize``: find the rig in a saved map, with the run loop's stages.
 
-The table of contents of :func:`localize_log`: claim the output folder and write the
+The table of contents of :func:`localize_reader`: claim the output folder and write the
 effective config; load the map (up-sampled first when it is as sparse as a stitched radar
-map, ``localize/map_prior.py``) and build its likelihood field; open the log; resolve the
-start (a pose, a pose offset from the truth, or none: global); run the one loop with the
-radar source's stages plus the localizer; write ``trajectory.tum`` (map frame, the log's
+map, ``localize/map_prior.py``) and build its likelihood field; open the reader (a log, or
+live sensors: ``pipelines/live.py``); resolve the start (a pose, a pose offset from the
+truth, or none: global); run the one loop with radar odometry's stages (and the camera's,
+for the motion steps) plus the localizer; write ``trajectory.tum`` (map frame, the log's
 clock), ``metrics.json`` and ``localization.png``; finish the recording.
 """
 
@@ -19,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
+from smokyslam.backends.scale import SharedScale
 from smokyslam.config import SmokySlamConfig
 from smokyslam.errors import ConfigError, RunInterruptedError, TopicError
 from smokyslam.evaluation.trajectory_io import write_tum
@@ -34,15 +37,16 @@ from smokyslam.localize.stage import LocalizationTrack, Localizer, LocalizeStart
 from smokyslam.mapio import load_map
 from smokyslam.outputs import OutputFolder
 from smokyslam.pipelines.loop import RunLoop
-from smokyslam.pipelines.sources import build_stages, get_source
+from smokyslam.pipelines.sources import Source, build_stages
 from smokyslam.pipelines.worker_process import DeferredCtrlC
 from smokyslam.types import RadarScan
 from smokyslam.viz.recorder import RecordingSetup, open_recorder
 
 logger = logging.getLogger(__name__)
 
-SOURCE = "radar"
-"""The run loop's stages the localizer rides on: radar odometry gives its motion steps."""
+SOURCE = Source("scan-matching", "factors", False, ("radar",))
+"""The run loop's stages the localizer rides on: radar odometry gives its motion steps, and
+the camera, where the log has one and ``localize.camera_motion`` is on, joins them."""
 
 
 @dataclass(frozen=True)
@@ -73,24 +77,58 @@ def localize_log(
     overwrite: bool = False,
 ) -> LocalizeResult:
     """Localize the log's radar frames in the map at ``map_yaml``; outputs in ``out_dir``."""
+    config = config_for_log(log_path, config)
+    return localize_reader(
+        map_yaml,
+        lambda: open_log(log_path, config, require=SOURCE.requires),
+        config,
+        out_dir,
+        request,
+        on_progress,
+        rerun_path,
+        rerun_spawn,
+        overwrite,
+    )
+
+
+def localize_reader(
+    map_yaml: Path | str,
+    open_reader: Callable[[], LogReader],
+    config: SmokySlamConfig,
+    out_dir: Path | str,
+    request: StartRequest,
+    on_progress: Callable[[float, str], None] | None = None,
+    rerun_path: Path | str | None = None,
+    rerun_spawn: bool = False,
+    overwrite: bool = False,
+) -> LocalizeResult:
+    """:func:`localize_log` over the reader ``open_reader()`` returns (a log, or live
+    sensors), opened once the map is loaded and the output folder claimed."""
     started = time.perf_counter()
-    config = config_for_log(log_path, config).model_copy(deep=True)
+    config = config.model_copy(deep=True)
     config.upsample.method = "none"  # the localizer needs no dense map of the new walk
+    config.slam.camera_factors = config.localize.camera_motion  # the camera stage, for it
+    config.slam.visual_map = False
     saved = load_map(map_yaml)
     used = localization_map(saved.cells, saved.spec, config)
     field = LikelihoodField(used.cells, saved.spec, config.localize)  # an empty map: now
     with OutputFolder(out_dir, overwrite=overwrite) as out, out.interrupt_kept():
         out.write_config(config)
-        reader = open_log(log_path, config, require=get_source(SOURCE).requires)
+        reader = open_reader()
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         start = _resolve_start(request, reader, config)
         recorder = open_recorder(rerun_path, config.recording, rerun_spawn)
         recorder.start(
             RecordingSetup("localize", reader.extrinsics(), None, reader.log_time_s, truth, gt_map)
         )
-        stages = build_stages(get_source(SOURCE), reader, config, recorder)
+        stages = build_stages(SOURCE, reader, config, recorder)
         mcl = MonteCarloLocalizer(field, config.localize)
-        stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start)
+        camera = None
+        if stages.camera is not None:  # radar frames' steps, at the scale of SLAM's keyframes
+            T_base_camera = reader.extrinsics().T_base_camera
+            scale = SharedScale(stages.backend.camera_scale)
+            camera = get_camera_factor_maker(config.backend, config.slam, T_base_camera, scale)
+        stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start, camera)
         estimate = RunLoop(stages, on_progress).run(reader.frames(stages.streams))
         with DeferredCtrlC():  # written whole on a first Ctrl-C; a second one stops it
             stamps_s, poses, _, particles = stages.localizer.track.arrays()
@@ -129,7 +167,11 @@ def localize_log(
                         "start": _pose_json(start.pose_map_base),
                         **metrics,
                     },
-                    "odometry": {"source": SOURCE, "lost_frames": int(estimate.lost.sum())},
+                    "odometry": {
+                        "source": "radar" if camera is None else "radar+camera",
+                        "lost_frames": int(estimate.lost.sum()),
+                        **_camera_steps(camera),
+                    },
                     "wall_s": wall_s,
                     "duration_s": duration_s,
                     "realtime_factor": duration_s / wall_s if wall_s > 0 else None,
@@ -173,6 +215,15 @@ def _resolve_start(
     start[:2] += offset[:2]  # the offset in the map's axes, not the rig's
     start[2] = se2_compose(true_start, np.array([0.0, 0.0, offset[2]]))[2]
     return LocalizeStart(start, sigmas)
+
+
+def _camera_steps(camera: CameraFactorMaker | None) -> dict[str, Any]:
+    """``camera_steps``: the radar frames whose motion step the camera joined (``used``), and
+    why the others went without it (as ``metrics.json`` ``camera_pairs`` of a fused run)."""
+    if camera is None:
+        return {}
+    outcomes = ("used", "untracked", "gated", "no_scale", "inconsistent")
+    return {"camera_steps": {key: camera.outcomes.get(key, 0) for key in outcomes}}
 
 
 def _pose_json(pose: np.ndarray | None) -> dict[str, float] | None:

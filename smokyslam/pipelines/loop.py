@@ -6,7 +6,8 @@ radar scan here; the camera frame where the camera tracks it). Then, in the log'
 1. the frontends the source needs (radar odometry or dead reckoning; camera odometry);
 2. the backend (keyframes, factors, loop closures, one iSAM2 update per keyframe);
 3. the online maps (a radar keyframe's scan; a metric camera keyframe's landmarks);
-   or, in a saved map, the localizer (the radar frame's odometry step and points);
+   or, in a saved map, the localizer (the radar frame's odometry step and points, and the
+   camera's odometry for its motion steps);
 4. the recorder (Rerun, or nothing): every frame, every tracked camera frame, and snapshots
    of the graph and the maps when it asks for them.
 
@@ -159,6 +160,7 @@ class RunLoop:
                     interrupted = True
                     logger.info("interrupted: keeping what was processed so far")
                     self._hand_over(keep=len(self._order) + 1)  # what is done, not waiting
+                    self._flush_localizer()
             finally:
                 if self.stages.camera is not None:
                     self.stages.camera.shutdown()
@@ -184,6 +186,7 @@ class RunLoop:
             with self._clock.time("radar"):
                 self._order.extend(self.stages.radar.flush())
         self._hand_over(keep=0)
+        self._flush_localizer()
         if self.stages.camera_steps is not None:
             for step in self.stages.camera_steps.flush():
                 self._camera_step(step)
@@ -212,6 +215,12 @@ class RunLoop:
                 stages.localizer.localize(frame.odometry, points_base_xy)
         self._processed(frame.odometry.stamp_s, frame.scan)
 
+    def _flush_localizer(self) -> None:
+        """Radar frames still waiting for the camera go through the localizer."""
+        if self.stages.localizer is not None:
+            with self._clock.time("localizer"):
+                self.stages.localizer.flush()
+
     def _camera_result(self, result: CameraOdometryResult) -> None:
         stages = self.stages
         self._camera_restarts = result.reinitializations
@@ -225,6 +234,9 @@ class RunLoop:
             return
         with self._clock.time("backend"):
             weight = stages.backend.add_camera(result)
+        if stages.localizer is not None:  # the camera joins its motion steps
+            with self._clock.time("localizer"):
+                stages.localizer.add_camera(result)
         scale_m = stages.backend.camera_scale_m
         if weight > 0.0 and scale_m is not None:
             self._visual_keyframe(result, scale_m)
