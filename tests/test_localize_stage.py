@@ -2,6 +2,8 @@
 metric step is fused with the radar's by their covariances; a silent camera is not waited for
 longer than ``CAMERA_WAIT_S``."""
 
+import collections
+
 import numpy as np
 
 from smokyslam.backends.camera_factors import CameraFactor
@@ -38,6 +40,7 @@ class CameraStub:
     def __init__(self, delta, covariance):
         self.latest_stamp_s = -np.inf
         self.delta, self.covariance = delta, covariance
+        self.outcomes = collections.Counter()
         self.pairs = []
 
     def add(self, stamp_s):
@@ -97,7 +100,7 @@ def test_a_silent_camera_is_not_waited_for_and_the_end_filters_every_frame():
     # younger, so those from 0.9 s on still wait.
     assert CAMERA_WAIT_S == 0.5
     np.testing.assert_allclose(stage.track.stamps_s, stamps[:6])
-    assert camera.pairs == []
+    assert camera.pairs == [] and camera.outcomes["untracked"] == 5  # 0.15-0.75 s
     stage.flush()
     np.testing.assert_allclose(stage.track.stamps_s, stamps)
     assert all(np.allclose(step, [0.1, 0.0, 0.0]) for step, _ in stage.mcl.steps)

@@ -8,13 +8,14 @@ the loop hands over the smoked scan.
 
 With a camera, its odometry joins the step while it is healthy. The camera's motion between
 two radar frames is made metric, checked against the radar's and weighed by the camera's
-health exactly as the SLAM backend's camera factors are (``backends/camera_factors.py``:
-tracking gate, windowed scale, consistency check, covariance inflated as image quality
-falls), then fused with the radar step by their covariances (``se2_fuse``). The camera's
-frame after a radar frame is needed for that, so a radar frame waits for it, at most
-``CAMERA_WAIT_S`` of radar time (the first frame, which only places the particles, never
-waits); a lost or absent camera leaves the radar step alone. So with a camera the newest
-filtered pose (:attr:`Localizer.pose`, what the recording shows) may be a frame behind.
+health as the SLAM backend's camera factors are (``backends/camera_factors.py``: tracking
+gate, consistency check, covariance inflated as image quality falls; the scale is the one
+SLAM's keyframe pairs keep, ``SharedScale``), then fused with the radar step by their
+covariances (``se2_fuse``). The camera's frame after a radar frame is needed for that, so a
+radar frame waits for it, at most ``CAMERA_WAIT_S`` of radar time (the first frame, which
+only places the particles, never waits); a lost or absent camera leaves the radar step
+alone. So with a camera the newest filtered pose (:attr:`Localizer.pose`, what the
+recording shows) may be a frame behind.
 """
 
 from __future__ import annotations
@@ -143,7 +144,10 @@ class Localizer:
         """The frame's base_link step and covariance: the radar's, fused with the camera's
         where the camera has a consistent metric step for it."""
         step, covariance = se2_conjugate(odometry.delta, odometry.covariance, self._pose_base_radar)
-        if self.camera is None or self.camera.latest_stamp_s < odometry.stamp_s:
+        if self.camera is None:
+            return step, covariance
+        if self.camera.latest_stamp_s < odometry.stamp_s:  # waited for it in vain
+            self.camera.outcomes["untracked"] += 1
             return step, covariance
         factor = self.camera.factor(self._last_stamp_s, odometry.stamp_s, step, covariance)
         if factor is None:
