@@ -86,7 +86,6 @@ class Localizer:
         self.camera = camera
         self._pose_base_radar = np.asarray(pose_base_radar, dtype=float)
         self._waiting: deque[tuple[Odometry, np.ndarray]] = deque()
-        self._last_stamp_s: float | None = None
         self.track = LocalizationTrack()
         self.first_particles: np.ndarray | None = None
         """(P, 3) the particles as the first scan left them (a global start draws them where
@@ -133,7 +132,6 @@ class Localizer:
         self.mcl.update(points_base_xy)
         if self.first_particles is None:
             self.first_particles = self.mcl.particles.copy()
-        self._last_stamp_s = odometry.stamp_s
         mean, covariance = self.mcl.estimate()
         self.track.stamps_s.append(odometry.stamp_s)
         self.track.poses_map_base.append(mean)
@@ -149,7 +147,8 @@ class Localizer:
         if self.camera.latest_stamp_s < odometry.stamp_s:  # waited for it in vain
             self.camera.outcomes["untracked"] += 1
             return step, covariance
-        factor = self.camera.factor(self._last_stamp_s, odometry.stamp_s, step, covariance)
+        previous_s = self.track.stamps_s[-1]  # the frame filtered before this one
+        factor = self.camera.factor(previous_s, odometry.stamp_s, step, covariance)
         if factor is None:
             return step, covariance
         return se2_fuse(step, covariance, factor.delta, factor.covariance)

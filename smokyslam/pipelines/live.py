@@ -107,6 +107,13 @@ def localize_live(
         raise ConfigError("--init-offset needs a log with ground truth, not a live sensor")
     open_reader = sensors.opener(config, out_dir)
     return localize_reader(
-        map_yaml, open_reader, config, out_dir, request, on_progress, rerun_path, rerun_spawn,
+        map_yaml,
+        open_reader,
+        config,
+        out_dir,
+        request,
+        on_progress,
+        rerun_path,
+        rerun_spawn,
         overwrite,
-    )  # fmt: skip
+    )

@@ -117,17 +117,19 @@ def localize_reader(
         reader = open_reader()
         truth, gt_map = reader.ground_truth_trajectory(), reader.ground_truth_map()
         start = _resolve_start(request, reader, config)
+        extrinsics = reader.extrinsics()
         recorder = open_recorder(rerun_path, config.recording, rerun_spawn)
         recorder.start(
-            RecordingSetup("localize", reader.extrinsics(), None, reader.log_time_s, truth, gt_map)
+            RecordingSetup("localize", extrinsics, None, reader.log_time_s, truth, gt_map)
         )
         stages = build_stages(SOURCE, reader, config, recorder)
         mcl = MonteCarloLocalizer(field, config.localize)
         camera = None
         if stages.camera is not None:  # radar frames' steps, at the scale of SLAM's keyframes
-            T_base_camera = reader.extrinsics().T_base_camera
             scale = SharedScale(stages.backend.camera_scale)
-            camera = get_camera_factor_maker(config.backend, config.slam, T_base_camera, scale)
+            camera = get_camera_factor_maker(
+                config.backend, config.slam, extrinsics.T_base_camera, scale
+            )
         stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start, camera)
         estimate = RunLoop(stages, on_progress).run(reader.frames(stages.streams))
         with DeferredCtrlC():  # written whole on a first Ctrl-C; a second one stops it
