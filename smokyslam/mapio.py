@@ -3,6 +3,12 @@
 The YAML holds ``image``, ``resolution``, ``origin`` ([x, y, yaw] of the lower-left pixel),
 ``negate``, ``occupied_thresh``, ``free_thresh`` and ``mode: trinary``. Image row 0 is the top
 of the map, so rows are flipped against smokyslam's ``[iy, ix]`` arrays (iy grows northwards).
+
+What an unknown cell means differs between maps, and map_server does not say. In the maps
+smokyslam writes, unknown is space no sensor observed; they carry ``unknown: unobserved``. In a
+floor plan it is solid: a robot-built plan often draws no wall at all, and the wall is where
+free space meets unknown (:func:`with_implicit_walls`). A map without the key is taken as a
+floor plan (``unknown: solid``), as the simulator takes it.
 """
 
 from __future__ import annotations
@@ -14,11 +20,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import yaml
+from scipy.ndimage import binary_dilation
 
 from smokyslam.errors import MapFileError
 from smokyslam.geometry import GridSpec
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
+UNKNOWN_MEANINGS = ("unobserved", "solid")
 _PIXEL_OCCUPIED, _PIXEL_FREE, _PIXEL_UNKNOWN = 0, 254, 205
 
 
@@ -28,6 +36,8 @@ class MapImage:
 
     cells: np.ndarray
     spec: GridSpec
+    unknown: str = "unobserved"
+    """What an unknown cell is: ``unobserved`` (smokyslam's maps) or ``solid`` (a floor plan)."""
 
     def as_probability(self) -> np.ndarray:
         """(rows, cols) float: occupied 1.0, free 0.0, unknown 0.5 (the error index's values)."""
@@ -54,8 +64,10 @@ def save_map(
     occupied_thresh: float = 0.65,
     free_thresh: float = 0.196,
     preview_png: bool = True,
+    unknown: str | None = None,
 ) -> Path:
-    """Write ``NAME.pgm`` + ``NAME.yaml`` (and ``NAME.png`` when asked); returns the YAML path."""
+    """Write ``NAME.pgm`` + ``NAME.yaml`` (and ``NAME.png`` when asked); returns the YAML path.
+    ``unknown``: written as the YAML's ``unknown`` key when given (see the module docstring)."""
     yaml_path = Path(yaml_path)
     yaml_path.parent.mkdir(parents=True, exist_ok=True)
     cells = np.asarray(cells)
@@ -77,6 +89,8 @@ def save_map(
         "free_thresh": float(free_thresh),
         "mode": "trinary",
     }
+    if unknown is not None:
+        description["unknown"] = unknown
     yaml_path.write_text(yaml.safe_dump(description, sort_keys=False))
     return yaml_path
 
@@ -103,6 +117,11 @@ def _read_description(yaml_path: Path) -> dict:
         raise MapFileError(f"{yaml_path}: origin must be finite numbers, got {origin!r}")
     if len(origin) > 2 and origin[2] not in (0, 0.0):
         raise MapFileError(f"{yaml_path}: rotated map origins (yaw != 0) are not supported")
+    if description.setdefault("unknown", "solid") not in UNKNOWN_MEANINGS:
+        raise MapFileError(
+            f"{yaml_path}: unknown must be one of {', '.join(UNKNOWN_MEANINGS)}, "
+            f"got {description['unknown']!r}"
+        )
     return description
 
 
@@ -139,4 +158,13 @@ def load_map(yaml_path: Path | str) -> MapImage:
         resolution_m=float(description["resolution"]),
         shape=cells.shape,
     )
-    return MapImage(cells=cells, spec=spec)
+    return MapImage(cells=cells, spec=spec, unknown=description["unknown"])
+
+
+def with_implicit_walls(cells: np.ndarray) -> np.ndarray:
+    """``cells`` with every unknown cell that borders free space (8 neighbours) occupied: the
+    walls of a floor plan that draws none, by the rule of the simulator's ground truth."""
+    cells = np.array(cells, copy=True)
+    free = cells == FREE
+    cells[(cells == UNKNOWN) & binary_dilation(free, np.ones((3, 3), dtype=bool))] = OCCUPIED
+    return cells

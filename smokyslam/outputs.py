@@ -171,7 +171,7 @@ class OutputFolder:
             self.empty_maps.append(name)
             self.update_metrics({"empty_maps": self.empty_maps})
             return None
-        yaml_path = save_map(self.path("maps", f"{name}.yaml"), cells, spec)
+        yaml_path = save_map(self.path("maps", f"{name}.yaml"), cells, spec, unknown="unobserved")
         self.maps[name] = (cells, spec)
         if truth is not None or trajectory_xy_m is not None:
             render_map_png(

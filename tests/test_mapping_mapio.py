@@ -9,7 +9,7 @@ import yaml
 
 from smokyslam.errors import MapFileError
 from smokyslam.geometry import GridSpec
-from smokyslam.mapio import load_map, save_map
+from smokyslam.mapio import load_map, save_map, with_implicit_walls
 from smokyslam.mapping.render import map_picture, render_map_png
 from smokyslam.sim.world import box_world
 from smokyslam.types import GroundTruthMap
@@ -83,6 +83,31 @@ def test_bad_map_files_give_clear_errors(tmp_path):
 
     with pytest.raises(MapFileError, match="map file not found"):
         load_map(tmp_path / "absent.yaml")
+
+    (tmp_path / "vague.yaml").write_text(yaml.safe_dump(dict(description, unknown="maybe")))
+    with pytest.raises(MapFileError, match="unknown must be one of unobserved, solid"):
+        load_map(tmp_path / "vague.yaml")
+
+
+def test_what_unknown_means_is_kept_and_a_plain_map_server_map_is_a_floor_plan(tmp_path):
+    cells, spec = _l_shaped_walls()
+    ours = save_map(tmp_path / "ours.yaml", cells, spec, unknown="unobserved")
+    assert load_map(ours).unknown == "unobserved"
+    plan = save_map(tmp_path / "plan.yaml", cells, spec)  # map_server's keys only
+    assert "unknown" not in yaml.safe_load(plan.read_text())
+    assert load_map(plan).unknown == "solid"
+
+
+def test_implicit_walls_are_the_unknown_cells_that_touch_free_space():
+    cells = np.full((7, 9), -1, dtype=np.int8)
+    cells[2:5, 2:7] = 0  # a 5 x 3 free room
+    cells[1, 3:6] = 100  # of its walls only part of one is drawn
+    walled = with_implicit_walls(cells)
+    ring = ~np.pad(np.ones((3, 5), bool), 1)  # every cell touching the room, corners included
+    assert np.array_equal(walled[1:6, 1:8] == 100, ring)
+    assert (walled[[0, 6], :] == -1).all() and (walled[:, [0, 8]] == -1).all()  # deeper: unknown
+    assert (walled[2:5, 2:7] == 0).all()  # the room itself is unchanged
+    assert cells[1, 1] == -1  # the input is left alone
 
 
 def test_picture_overlays_truth_walls_in_red(tmp_path):

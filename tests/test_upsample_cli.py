@@ -130,19 +130,27 @@ TINY = {
 }
 
 
-def _train(tmp_path: Path, name: str, *extra: str, epochs: int = 2) -> subprocess.CompletedProcess:
+@pytest.fixture(scope="module")
+def pairs(tmp_path_factory) -> Path:
+    """One training-pair cache for the module's trainings (pairs are cached by config)."""
+    return tmp_path_factory.mktemp("pairs")
+
+
+def _train(
+    tmp_path: Path, pairs: Path, name: str, *extra: str, epochs: int = 2
+) -> subprocess.CompletedProcess:
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(TINY))
     return smokyslam(
-        "train-upsampler", "--out", tmp_path / name, "--config", config, "--data",
-        tmp_path / "pairs", "--epochs", str(epochs), *extra,
+        "train-upsampler", "--out", tmp_path / name, "--config", config, "--data", pairs,
+        "--epochs", str(epochs), *extra,
     )  # fmt: skip
 
 
-def test_training_writes_its_outputs_and_resumes_to_the_same_weights(tmp_path):
+def test_training_writes_its_outputs_and_resumes_to_the_same_weights(tmp_path, pairs):
     import torch
 
-    straight = _train(tmp_path, "straight.pt")
+    straight = _train(tmp_path, pairs, "straight.pt")
     assert straight.returncode == 0, straight.stderr
     for suffix in (".pt", ".config.yaml", ".history.json", ".loss.png", ".ckpt"):
         assert (tmp_path / f"straight{suffix}").stat().st_size > 0, suffix
@@ -151,28 +159,28 @@ def test_training_writes_its_outputs_and_resumes_to_the_same_weights(tmp_path):
     assert all(0.0 <= h["val_error_index"] <= 1.0 for h in record["history"])
     assert record["command"].startswith("smokyslam train-upsampler --out")
     # One epoch, then a resumed second: the same weights as two straight epochs.
-    assert _train(tmp_path, "halves.pt", epochs=1).returncode == 0
-    resumed = _train(tmp_path, "halves.pt", "--resume")
+    assert _train(tmp_path, pairs, "halves.pt", epochs=1).returncode == 0
+    resumed = _train(tmp_path, pairs, "halves.pt", "--resume")
     assert resumed.returncode == 0, resumed.stderr
     a = torch.load(tmp_path / "straight.pt", weights_only=True)["state_dict"]
     b = torch.load(tmp_path / "halves.pt", weights_only=True)["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
-def test_training_refuses_evaluation_seeds_and_a_foreign_checkpoint(tmp_path):
+def test_training_refuses_evaluation_seeds_and_a_foreign_checkpoint(tmp_path, pairs):
     out = smokyslam("train-upsampler", "--out", tmp_path / "w.pt", "--worlds", "6000")
     assert out.returncode == 1 and "at most 5000 training worlds" in out.stderr
     (tmp_path / "w.ckpt").write_bytes(b"garbage")
-    out = _train(tmp_path, "w.pt", "--resume")
+    out = _train(tmp_path, pairs, "w.pt", "--resume")
     assert out.returncode == 1 and "unreadable checkpoint" in out.stderr, out.stderr
 
 
-def test_ctrl_c_leaves_the_last_checkpoint_intact(tmp_path):
+def test_ctrl_c_leaves_the_last_checkpoint_intact(tmp_path, pairs):
     config = tmp_path / "tiny.yaml"
     slow = {"upsample": {"training": {**TINY["upsample"]["training"], "steps_per_epoch": 400}}}
     config.write_text(yaml.safe_dump(slow))
     args = ["train-upsampler", "--out", tmp_path / "w.pt", "--config", config,
-            "--data", tmp_path / "pairs", "--epochs", "3"]  # fmt: skip
+            "--data", pairs, "--epochs", "3"]  # fmt: skip
     process = subprocess.Popen(
         [sys.executable, "-m", "smokyslam.cli", *map(str, args)],
         stdout=subprocess.PIPE,

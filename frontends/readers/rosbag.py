@@ -75,6 +75,7 @@ class RosbagReader:
         """The checks of the latest ``frames()`` pass (what was dropped, time anomalies)."""
         self._intrinsics: CameraIntrinsics | None = None
         self._intrinsics_read = False
+        self._truth: tuple[GroundTruthTrajectory | None] | None = None  # read once, then kept
         self._time_origin_s: float | None = None
         self._log_types = self._file.types
         self.stream_topics = self._resolve_streams()
@@ -171,9 +172,10 @@ class RosbagReader:
         if not transforms:
             logger.info("%s: no static transforms; sensors taken at base_link", self.path)
         try:
-            return extrinsics_from_tf(transforms)
+            self._extrinsics = extrinsics_from_tf(transforms)
         except MessageError as exc:
             raise MessageError(f"{self.path}: /tf_static: {exc}") from None
+        return self._extrinsics
 
     def ground_truth_map(self) -> GroundTruthMap | None:
         """The last usable ground-truth OccupancyGrid in the log, or None (an unusable one, e.g.
@@ -200,6 +202,11 @@ class RosbagReader:
         """Every finite ground-truth pose of the log, sorted by stamp (repeated stamps kept
         once), or None when it has none; non-finite or malformed poses are dropped with a
         warning."""
+        if self._truth is None:
+            self._truth = (self._read_ground_truth(),)
+        return self._truth[0]
+
+    def _read_ground_truth(self) -> GroundTruthTrajectory | None:
         stamps, poses = [], []
         for _, stamp_s, msg in self._messages("ground_truth_pose"):
             try:

@@ -110,7 +110,14 @@ def localize_reader(
     config.slam.camera_factors = config.localize.camera_motion  # the camera stage, for it
     config.slam.visual_map = False
     saved = load_map(map_yaml)
-    used = localization_map(saved.cells, saved.spec, config)
+    used = localization_map(saved.cells, saved.spec, config, saved.unknown)
+    if used.implicit_walls:
+        logger.info(
+            "%s: a floor plan (unknown is solid): %d cells where free space meets unknown are "
+            "walls (a map written with 'unknown: unobserved' gets none)",
+            map_yaml,
+            used.implicit_walls,
+        )
     field = LikelihoodField(used.cells, saved.spec, config.localize)  # an empty map: now
     with OutputFolder(out_dir, overwrite=overwrite) as out, out.interrupt_kept():
         out.write_config(config)
@@ -165,6 +172,7 @@ def localize_reader(
                         "map": str(Path(map_yaml)),
                         "map_densified": used.densified,
                         "map_isolated_share": used.isolated_share,
+                        "map_implicit_walls": used.implicit_walls,
                         "mode": start.mode,
                         "start": _pose_json(start.pose_map_base),
                         **metrics,

@@ -117,7 +117,9 @@ def paper_table(
         image = maps[index]
         scores = evaluate_map(image.cells, image.spec, truth.cells, truth.spec) if image else {}
         if image is not None:
-            save_map(out_dir / f"maps/map_{index}.yaml", image.cells, image.spec)
+            save_map(
+                out_dir / f"maps/map_{index}.yaml", image.cells, image.spec, unknown="unobserved"
+            )
         rows.append(
             TableRow(
                 index,

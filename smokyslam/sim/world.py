@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_dilation
 
 from smokyslam.geometry import GridSpec
+from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN, with_implicit_walls
 
 
 @dataclass
@@ -36,11 +36,9 @@ class World:
         floor plan often draws no wall at all (the wall is where free meets unknown), yet the
         sensors hit that edge as they hit a drawn wall.
         """
-        cells = np.where(self.occupied, 100, 0).astype(np.int8)
-        free = ~self.occupied & self.known
-        edge = self.occupied & binary_dilation(free, np.ones((3, 3), dtype=bool))
-        cells[~self.known & ~edge] = -1
-        return cells
+        cells = np.where(self.occupied, OCCUPIED, FREE).astype(np.int8)
+        cells[~self.known] = UNKNOWN  # solid there (``occupied``), so its edge is a wall
+        return with_implicit_walls(cells)
 
     def is_free(self, points_xy: np.ndarray) -> np.ndarray:
         """(N,) bool: points lying in a free, in-bounds cell."""

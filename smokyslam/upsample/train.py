@@ -126,11 +126,11 @@ class UpsamplerTrainer:
     # -- the table of contents ---------------------------------------------------------------
 
     def train(self, resume: bool, on_progress: ProgressCallback | None = None) -> TrainingResult:
+        if resume:  # before the pairs: a bad checkpoint fails in seconds, not after simulation
+            self._restore()
         train_seeds, val_seeds = training_seeds(self.training)
         pairs = build_pairs(train_seeds, self.config, self.paths["data"], self.training.jobs)
         validation = build_pairs(val_seeds, self.config, self.paths["data"], self.training.jobs)
-        if resume:
-            self._restore()
         sampler = CropSampler(pairs, self.training, self.rng)
         total = self.training.epochs * self.training.steps_per_epoch
         try:
