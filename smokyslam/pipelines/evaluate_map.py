@@ -17,7 +17,7 @@ from smokyslam.evaluation.cloud_truth import CLOUD_SUFFIXES, cloud_truth
 from smokyslam.evaluation.map_metrics import map_scores
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.geometry import GridSpec
-from smokyslam.mapio import UNKNOWN, MapImage, load_map
+from smokyslam.mapio import UNKNOWN, MapImage, load_map, with_implicit_walls
 from smokyslam.mapping.grid import resample_nearest
 from smokyslam.types import GroundTruthMap
 
@@ -29,12 +29,14 @@ def load_truth(
     z_band: tuple[float, float] | None = None,
 ) -> tuple[GroundTruthMap, GroundTruthMap | None]:
     """(truth, observed truth or None) from a map YAML, a log's ground-truth map topics, or
-    a point cloud flattened onto the grid of ``estimate`` (required for a cloud)."""
+    a point cloud flattened onto the grid of ``estimate`` (required for a cloud). A floor
+    plan's implicit walls are truth, as in the simulator's ``/ground_truth/map``."""
     truth_path = Path(truth_path)
     suffix = truth_path.suffix.lower()
     if suffix in (".yaml", ".yml"):
         truth = load_map(truth_path)
-        return GroundTruthMap(stamp_s=0.0, cells=truth.cells, spec=truth.spec), None
+        cells = with_implicit_walls(truth.cells) if truth.unknown == "solid" else truth.cells
+        return GroundTruthMap(stamp_s=0.0, cells=cells, spec=truth.spec), None
     if suffix in CLOUD_SUFFIXES:
         if estimate is None:
             raise MapFileError(f"{truth_path}: a cloud is flattened onto a map's grid")
