@@ -138,6 +138,50 @@ def test_a_lost_camera_leaves_all_trust_to_the_radar():
     assert model.radar_trust(model.camera_trust(0.0, 0.2, False)) == 1.0
 
 
+def _rooms(shift_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """(radar, visual): a 6 x 4 m room with a pillar; the visual map's walls ``shift_cells``
+    out to the east and north, as where the camera's depths run long."""
+    radar = np.full((60, 80), UNKNOWN, dtype=np.int8)
+    radar[10:50, 10:70] = FREE
+    radar[10, 10:70] = radar[49, 10:70] = radar[10:50, 10] = radar[10:50, 69] = OCCUPIED
+    radar[28:32, 38:42] = OCCUPIED
+    visual = np.full_like(radar, UNKNOWN)
+    k = shift_cells
+    visual[12 : 48 + k, 12 : 68 + k] = FREE
+    visual[48 + k, 12 : 68 + k] = visual[12 : 48 + k, 68 + k] = OCCUPIED
+    visual[28 + k : 32 + k, 38 + k : 42 + k] = OCCUPIED
+    return radar, visual
+
+
+def test_a_visual_map_that_disagrees_with_the_radar_map_is_trusted_less():
+    spec = GridSpec((0.0, 0.0), 0.1, (60, 80))
+    fuser = MapFuser(FusionConfig())
+    sound = fuser.fuse(_rooms(0)[0], spec, _rooms(0)[1], spec, 0.5)
+    assert sound.agreement > 0.8 and sound.trust_mean == pytest.approx(0.5)
+    off = fuser.fuse(_rooms(3)[0], spec, _rooms(3)[1], spec, 0.5)  # walls 0.3 m out
+    assert 0.2 < off.agreement < 0.6
+    expected = 1.0 - 0.5 * off.agreement / 0.6  # t' = 1 - (1 - t) rho / agreement_clear
+    assert off.trust_mean == pytest.approx(expected)
+    assert off.summary()["agreement"] == pytest.approx(off.agreement)
+    # Walls 0.6 m out contradict the radar map: the camera's map drops out, even where it
+    # alone knows cells (its trust 0 is below keep_trust).
+    contradicting = fuser.fuse(_rooms(6)[0], spec, _rooms(6)[1], spec, 0.5)
+    assert contradicting.agreement < 0.0 and contradicting.trust_mean == 1.0
+    assert (contradicting.to_cells()[49 + 6, 20:60] == UNKNOWN).all()
+    # A forced t is used as given, and no agreement is reported.
+    forced = MapFuser(FusionConfig(trust=0.5)).fuse(_rooms(6)[0], spec, _rooms(6)[1], spec, None)
+    assert forced.trust_mean == pytest.approx(0.5) and "agreement" not in forced.summary()
+
+
+def test_the_agreement_factor_spares_a_sound_or_unmeasured_map():
+    model = get_trust_model(FusionConfig())
+    assert model.agreement_factor(0.9) == 1.0 and model.agreement_factor(None) == 1.0
+    assert model.agreement_factor(0.3) == pytest.approx(0.5)
+    assert model.agreement_factor(-0.2) == 0.0
+    unused = FusionConfig.model_validate({"trust_model": {"agreement_clear": 0.0}})
+    assert get_trust_model(unused).agreement_factor(0.1) == 1.0
+
+
 def test_trust_grid_spreads_each_keyframe_over_the_cells_it_saw():
     spec = GridSpec((0.0, 0.0), 1.0, (2, 3))
     points = np.array([[0.5, 0.5], [0.6, 0.4], [1.5, 0.5], [1.5, 0.5], [2.5, 1.5]])

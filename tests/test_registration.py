@@ -223,6 +223,8 @@ def test_paper_table_places_a_camera_map_by_the_fused_run_s_own_visual_map(floor
     occupied = placed.cells == OCCUPIED
     near = binary_dilation(own_visual.cells == OCCUPIED, np.ones((3, 3), bool))
     assert np.count_nonzero(occupied & near) > 0.95 * np.count_nonzero(occupied)
-    assert t_mean == pytest.approx(0.6)
+    # The camera measured t 0.6; its map shares no wall with these radar maps (agreement
+    # near 0), so the radar is trusted more (fusion/trust.py).
+    assert 0.9 < t_mean <= 1.0
     with pytest.raises(FusionError, match="with confidence"):
         _register_and_fuse(camera_yaml, (radar, radar, None), config, fuser)

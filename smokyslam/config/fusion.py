@@ -66,6 +66,13 @@ class TrustConfig(_Section):
     per_region: bool = Field(
         True, description="t per cell from the keyframes that saw it (else one t per run)"
     )
+    agreement_clear: float = Field(
+        0.6,
+        ge=0.0,
+        le=1.0,
+        description="correlation of a sound visual map with the radar map where both know "
+        "cells; below it the camera's trust falls in proportion (0: not used)",
+    )
 
 
 class FusionConfig(_Section):

@@ -56,6 +56,8 @@ class FusedMap:
     spec: GridSpec
     rule: str
     trust_mean: float
+    agreement: float | None = None
+    """The visual map's agreement with the radar map, where measured (``fusion/trust.py``)."""
 
     def to_cells(self) -> np.ndarray:
         """Trinary cells (map_server thresholds), as saved."""
@@ -63,7 +65,10 @@ class FusedMap:
 
     def summary(self) -> dict[str, float | str]:
         """``fusion`` in metrics.json."""
-        return {"rule": self.rule, "trust_mean": self.trust_mean}
+        summary: dict[str, float | str] = {"rule": self.rule, "trust_mean": self.trust_mean}
+        if self.agreement is not None:
+            summary["agreement"] = self.agreement
+        return summary
 
 
 def fuse_maps(

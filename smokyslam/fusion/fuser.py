@@ -14,6 +14,7 @@ import numpy as np
 from smokyslam.config.fusion import FusionConfig
 from smokyslam.errors import FusionError
 from smokyslam.fusion.fuse import FusedMap, MapValues, fuse_maps
+from smokyslam.fusion.registration import agreement
 from smokyslam.fusion.trust import TrustModel
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import UNKNOWN
@@ -41,6 +42,7 @@ class MapFuser:
         self.forced_trust = None if config.trust == "auto" else float(config.trust)
         self.keep_trust = config.keep_trust
         self.clip = config.log_odds_clip
+        self.registration = config.registration
 
     def fuse(
         self,
@@ -58,18 +60,23 @@ class MapFuser:
         when neither gives one.
         """
         spec = union_spec(radar_spec, visual_spec)
-        radar = MapValues.from_cells(resample_nearest(radar_cells, radar_spec, spec, UNKNOWN), spec)
-        visual = MapValues.from_cells(
-            resample_nearest(visual_cells, visual_spec, spec, UNKNOWN), spec
-        )
-        return fuse_maps(
-            radar,
-            visual,
-            self._trust(trust, default_trust, visual_spec, spec),
+        radar_on = resample_nearest(radar_cells, radar_spec, spec, UNKNOWN)
+        visual_on = resample_nearest(visual_cells, visual_spec, spec, UNKNOWN)
+        t = self._trust(trust, default_trust, visual_spec, spec)
+        rho = None
+        if self.forced_trust is None:  # a measured t: the camera's map must agree, too
+            rho = agreement(radar_on, visual_on, self.registration)
+            t = 1.0 - (1.0 - np.asarray(t, dtype=float)) * self.trust.agreement_factor(rho)
+        fused = fuse_maps(
+            MapValues.from_cells(radar_on, spec),
+            MapValues.from_cells(visual_on, spec),
+            t,
             self.rule,
             self.keep_trust,
             self.clip,
         )
+        fused.agreement = rho
+        return fused
 
     def _trust(self, trust, default_trust, visual_spec: GridSpec, spec: GridSpec):
         if self.forced_trust is not None:
@@ -85,4 +92,4 @@ class MapFuser:
 def get_trust_model(config: FusionConfig) -> TrustModel:
     """The trust formula's constants from the config."""
     trust = config.trust_model
-    return TrustModel(trust.t_clear, trust.noise_blind, trust.contrast_clear)
+    return TrustModel(trust.t_clear, trust.noise_blind, trust.contrast_clear, trust.agreement_clear)

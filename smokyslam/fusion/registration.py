@@ -164,6 +164,13 @@ def correlation(
     return float((a * b).sum()) / norms if norms > 0.0 else -1.0
 
 
+def agreement(cells_a: np.ndarray, cells_b: np.ndarray, config: RegistrationConfig) -> float | None:
+    """:func:`correlation` of two trinary maps on one grid, as they lie (no warp); None when
+    they share too few known cells to measure it."""
+    rho = correlation(np.asarray(cells_a), np.asarray(cells_b), np.eye(3), config)
+    return None if rho == -1.0 else rho
+
+
 def _ecc(template, image, template_mask, image_mask, W, criteria):
     if hasattr(cv2, "findTransformECCWithMask"):  # OpenCV >= 4.13 masks both images
         return cv2.findTransformECCWithMask(

@@ -16,6 +16,18 @@ The trust of a run is the mean over its camera keyframes. Per region, each keyfr
 spread over the cells its landmarks fell in, and a cell takes the mean of the keyframes that saw
 it (the run's t where none did), so a room seen in clear air and one seen in smoke are fused
 each by its own conditions.
+
+Clear images do not make a sound map: where the camera's depths are off, its walls land
+metres from the radar's. So the fusion also measures how well the visual map agrees with the
+radar map where both know cells, as the correlation ``rho`` of their smoothed occupancy (the
+measure registration scores by, ``fusion/registration.py``), and the camera's trust falls in
+proportion below ``agreement_clear``:
+
+    t' = 1 - (1 - t) * clip(rho / agreement_clear, 0, 1)
+
+(measured: ``rho`` 0.54-0.83 between the visual and radar maps of ten office runs in clear
+air; 0.34 in a flat where the camera's steps were 42 % off in length, and its walls 0.3-1 m
+out). A forced t is used as given.
 """
 
 from __future__ import annotations
@@ -40,6 +52,7 @@ class TrustModel:
     t_clear: float
     noise_blind: float
     contrast_clear: float
+    agreement_clear: float = 0.0
 
     def camera_trust(
         self, impulse_fraction: np.ndarray, rms_contrast: np.ndarray, tracked: np.ndarray
@@ -52,6 +65,13 @@ class TrustModel:
     def radar_trust(self, camera_trust: np.ndarray | float) -> np.ndarray:
         """The trust index t of the camera trust: ``t_clear`` for a clear camera, 1 blind."""
         return 1.0 - (1.0 - self.t_clear) * np.asarray(camera_trust, dtype=float)
+
+    def agreement_factor(self, rho: float | None) -> float:
+        """How far the camera's trust holds given its map's agreement ``rho`` with the radar
+        map (1: sound, or not measured, or the factor not used)."""
+        if rho is None or self.agreement_clear <= 0.0:
+            return 1.0
+        return float(np.clip(rho / self.agreement_clear, 0.0, 1.0))
 
 
 def trust_grid(
