@@ -6,9 +6,9 @@ of the map, so rows are flipped against smokyslam's ``[iy, ix]`` arrays (iy grow
 
 What an unknown cell means differs between maps, and map_server does not say. In the maps
 smokyslam writes, unknown is space no sensor observed; they carry ``unknown: unobserved``. In a
-floor plan it is solid: a robot-built plan often draws no wall at all, and the wall is where
-free space meets unknown (:func:`with_implicit_walls`). A map without the key is taken as a
-floor plan (``unknown: solid``), as the simulator takes it.
+floor plan that draws no walls it is solid: the wall is where free space meets unknown
+(:func:`with_implicit_walls`), as the simulator takes it; ``unknown: solid`` says so. A map
+without the key is read by what it draws (:data:`PLAN_WALL_SHARE`).
 """
 
 from __future__ import annotations
@@ -27,6 +27,14 @@ from smokyslam.geometry import GridSpec
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
 UNKNOWN_MEANINGS = ("unobserved", "solid")
+PLAN_WALL_SHARE = 0.15
+"""A map without an ``unknown`` key whose occupied cells number fewer than this share of the
+unknown cells touching its free space draws (almost) no walls: a floor plan whose walls are
+that edge, so its unknown is solid. Measured: a robot-built plan without drawn walls 0.07; a
+plan with drawn walls 4.6; stitched radar maps of ten offices 0.20-0.26 (sparse) and
+0.53-0.59 (up-sampled); a map stitched from the Intel lab's laser scans 1.36. In those sensor
+maps the edge of free space is unobserved: read as walls, tracking along the Intel log lost
+29 % of its frames instead of 3.5 %, and in the office maps 1-2 of 10 runs more missed."""
 _PIXEL_OCCUPIED, _PIXEL_FREE, _PIXEL_UNKNOWN = 0, 254, 205
 
 
@@ -37,7 +45,8 @@ class MapImage:
     cells: np.ndarray
     spec: GridSpec
     unknown: str = "unobserved"
-    """What an unknown cell is: ``unobserved`` (smokyslam's maps) or ``solid`` (a floor plan)."""
+    """What an unknown cell is: ``unobserved`` (smokyslam's maps) or ``solid`` (a floor plan
+    that draws no walls)."""
 
     def as_probability(self) -> np.ndarray:
         """(rows, cols) float: occupied 1.0, free 0.0, unknown 0.5 (the error index's values)."""
@@ -117,7 +126,7 @@ def _read_description(yaml_path: Path) -> dict:
         raise MapFileError(f"{yaml_path}: origin must be finite numbers, got {origin!r}")
     if len(origin) > 2 and origin[2] not in (0, 0.0):
         raise MapFileError(f"{yaml_path}: rotated map origins (yaw != 0) are not supported")
-    if description.setdefault("unknown", "solid") not in UNKNOWN_MEANINGS:
+    if description.get("unknown", UNKNOWN_MEANINGS[0]) not in UNKNOWN_MEANINGS:
         raise MapFileError(
             f"{yaml_path}: unknown must be one of {', '.join(UNKNOWN_MEANINGS)}, "
             f"got {description['unknown']!r}"
@@ -158,7 +167,14 @@ def load_map(yaml_path: Path | str) -> MapImage:
         resolution_m=float(description["resolution"]),
         shape=cells.shape,
     )
-    return MapImage(cells=cells, spec=spec, unknown=description["unknown"])
+    unknown = description.get("unknown") or _unknown_by_what_it_draws(cells)
+    return MapImage(cells=cells, spec=spec, unknown=unknown)
+
+
+def _unknown_by_what_it_draws(cells: np.ndarray) -> str:
+    implied = np.count_nonzero(with_implicit_walls(cells) != cells)
+    drawn = np.count_nonzero(cells == OCCUPIED)
+    return "solid" if drawn < PLAN_WALL_SHARE * implied else "unobserved"
 
 
 def with_implicit_walls(cells: np.ndarray) -> np.ndarray:

@@ -89,13 +89,18 @@ def test_bad_map_files_give_clear_errors(tmp_path):
         load_map(tmp_path / "vague.yaml")
 
 
-def test_what_unknown_means_is_kept_and_a_plain_map_server_map_is_a_floor_plan(tmp_path):
+def test_what_unknown_means_is_kept_or_read_from_what_the_map_draws(tmp_path):
     cells, spec = _l_shaped_walls()
-    ours = save_map(tmp_path / "ours.yaml", cells, spec, unknown="unobserved")
+    plain = save_map(tmp_path / "plain.yaml", cells, spec)  # map_server's keys only
+    assert "unknown" not in yaml.safe_load(plain.read_text())
+    assert load_map(plain).unknown == "unobserved"  # it draws its walls
+    solid = save_map(tmp_path / "solid.yaml", cells, spec, unknown="solid")
+    assert load_map(solid).unknown == "solid"
+    bare = np.where(cells == 100, -1, cells).astype(np.int8)  # the same map, no wall drawn
+    bare[5, 5] = 100  # but a speck
+    assert load_map(save_map(tmp_path / "bare.yaml", bare, spec)).unknown == "solid"
+    ours = save_map(tmp_path / "ours.yaml", bare, spec, unknown="unobserved")
     assert load_map(ours).unknown == "unobserved"
-    plan = save_map(tmp_path / "plan.yaml", cells, spec)  # map_server's keys only
-    assert "unknown" not in yaml.safe_load(plan.read_text())
-    assert load_map(plan).unknown == "solid"
 
 
 def test_implicit_walls_are_the_unknown_cells_that_touch_free_space():

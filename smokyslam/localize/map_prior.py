@@ -13,9 +13,9 @@ like; ``smokyslam upsample`` gives the same map), and the filter weighs against 
 ``localize.densify``: ``auto`` (up-sample when the share of isolated occupied cells is at
 least ``densify_isolated``), ``always``, ``never``.
 
-A floor plan (a map whose unknown is solid, see :mod:`smokyslam.mapio`) first gets the walls it
-implies: a robot-built plan that draws none, where free space simply ends at unknown, has
-nothing else for the radar points to fit (measured: tracking from 1 m off never converged in
+A floor plan that draws no walls (a map whose unknown is solid, see :mod:`smokyslam.mapio`)
+first gets the walls it implies: where free space simply ends at unknown, the plan has nothing
+else for the radar points to fit (measured: tracking from 1 m off never converged in
 such a plan; see ``tests/test_localize_cli.py``).
 """
 

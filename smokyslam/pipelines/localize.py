@@ -113,8 +113,8 @@ def localize_reader(
     used = localization_map(saved.cells, saved.spec, config, saved.unknown)
     if used.implicit_walls:
         logger.info(
-            "%s: a floor plan (unknown is solid): %d cells where free space meets unknown are "
-            "walls (a map written with 'unknown: unobserved' gets none)",
+            "%s: a floor plan that draws no walls (its unknown is solid): %d cells where its "
+            "free space meets unknown are walls ('unknown: unobserved' in its YAML: none)",
             map_yaml,
             used.implicit_walls,
         )
