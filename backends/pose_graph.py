@@ -52,10 +52,14 @@ class PoseGraph:
         relinearize_threshold: float,
         relinearize_skip: int,
         loop_closure_iterations: int,
+        factorization: str = "qr",
     ) -> None:
         """``floor_sigmas``: smallest ``[x_m, y_m, theta_rad]`` sigmas any factor may claim.
-        ``loop_closure_iterations``: extra iSAM2 updates after a factor joins two old poses."""
+        ``loop_closure_iterations``: extra iSAM2 updates after a factor joins two old poses.
+        ``factorization``: iSAM2's linear solver, "qr" or "cholesky" (faster in theory, but
+        it gives up on chains that mix near-certain steps with nearly uninformative ones)."""
         params = gtsam.ISAM2Params()
+        params.setFactorization(factorization.upper())
         params.setRelinearizeThreshold(relinearize_threshold)
         params.relinearizeSkip = relinearize_skip
         self._isam = gtsam.ISAM2(params)
@@ -175,4 +179,5 @@ def get_pose_graph(config: BackendConfig) -> PoseGraph:
         relinearize_threshold=config.relinearize_threshold,
         relinearize_skip=config.relinearize_skip,
         loop_closure_iterations=config.loop_closure_iterations,
+        factorization=config.factorization,
     )
