@@ -139,8 +139,9 @@ class PoseGraph:
             self._isam.update(self._new_factors, self._new_values)
             for _ in range(self._loop_closure_iterations if self._pending_loop else 0):
                 self._isam.update()
-        except RuntimeError as exc:
-            raise EstimationError(f"iSAM2 update failed: {exc}") from exc
+        except RuntimeError as exc:  # gtsam's text spans paragraphs: its first one says it
+            reason = " ".join(str(exc).strip().split("\n\n")[0].split())
+            raise EstimationError(f"iSAM2 update failed: {reason}") from exc
         self._new_factors.resize(0)
         self._new_values.clear()
         self._optimized |= self._pending_keys

@@ -53,6 +53,16 @@ class RunInterruptedError(SmokySlamError):
         self.out_dir = out_dir
 
 
+class RunFailedError(SmokySlamError):
+    """A stage failed part-way through a run; what it computed before was written to
+    ``out_dir``."""
+
+    def __init__(self, reason: str, out_dir: object) -> None:
+        super().__init__(f"{reason} (what was computed before it is in {out_dir}/)")
+        self.reason = reason
+        self.out_dir = out_dir
+
+
 class OutputError(SmokySlamError):
     """An output folder cannot be used (it holds an earlier run, or cannot be written)."""
 

@@ -488,3 +488,38 @@ def test_ctrl_c_stops_a_sweep_and_leaves_no_worker(office_log, tmp_path):
         assert not [pid for pid in children if _alive(pid)]
         return
     pytest.fail("no Ctrl-C landed inside the sweep in five tries")
+
+
+def test_a_stage_that_fails_part_way_keeps_what_came_before_it(
+    tiny_logs, tmp_path, monkeypatch, capsys
+):
+    # The graph gives up at its 4th update (as iSAM2's Cholesky once did on a lost camera's
+    # coasting steps): the run writes the frames before it and says so in one line.
+    from smokyslam.backends.pose_graph import PoseGraph
+    from smokyslam.cli import main as cli_main
+    from smokyslam.errors import EstimationError
+
+    optimize, calls = PoseGraph.optimize, []
+
+    def failing_optimize(self):
+        calls.append(1)
+        if len(calls) == 4:
+            raise EstimationError("iSAM2 update failed: Indeterminate linear system")
+        optimize(self)
+
+    monkeypatch.setattr(PoseGraph, "optimize", failing_optimize)
+    out_dir = tmp_path / "run"
+    monkeypatch.setattr(
+        sys, "argv", ["smokyslam", "run", str(tiny_logs[".mcap"]), "--out", str(out_dir)]
+    )
+    with pytest.raises(SystemExit) as exited:
+        cli_main()
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert exited.value.code == 1
+    assert lines[-1].startswith("error: run stopped at ") and "Indeterminate" in lines[-1]
+    assert str(out_dir) in lines[-1]
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert metrics["failed"].startswith("run stopped at")
+    assert 10 <= metrics["trajectory"]["frames"] < 31  # measured 18 of the log's 31
+    assert len(np.loadtxt(out_dir / "trajectory.tum")) == metrics["trajectory"]["frames"]
+    assert (out_dir / "maps" / "radar_sparse.pgm").is_file()

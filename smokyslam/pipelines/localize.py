@@ -23,7 +23,7 @@ import numpy as np
 from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
 from smokyslam.backends.scale import SharedScale
 from smokyslam.config import SmokySlamConfig
-from smokyslam.errors import ConfigError, RunInterruptedError, TopicError
+from smokyslam.errors import ConfigError, RunFailedError, RunInterruptedError, TopicError
 from smokyslam.evaluation.trajectory_io import write_tum
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import config_for_log, open_log
@@ -164,6 +164,8 @@ def localize_reader(
             duration_s = reader.summary().duration_s
             wall_s = time.perf_counter() - started
             extra: dict[str, Any] = {"interrupted": True} if estimate.interrupted else {}
+            if estimate.failure:
+                extra["failed"] = estimate.failure
             if problems := reader.problems():
                 extra["log"] = problems
             everything = out.update_metrics(
@@ -191,6 +193,8 @@ def localize_reader(
     logger.info("localized %d frames of %s in %.1f s", len(stamps_s), reader.path, wall_s)
     if estimate.interrupted:
         raise RunInterruptedError(out.root)
+    if estimate.failure:
+        raise RunFailedError(estimate.failure, out.root)
     return LocalizeResult(out.root, everything, stages.localizer.track)
 
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from smokyslam.backends.slam import SlamBackend
+from smokyslam.errors import SmokySlamError
 from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
 from smokyslam.frontends.camera.result import CameraOdometryResult
 from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
@@ -111,6 +112,8 @@ class RunEstimate:
     localization: LocalizationTrack | None = None
     step_pairs: StepPairs | None = None
     interrupted: bool = False
+    failure: str | None = None
+    """Why a stage stopped the run part-way (None: it read every frame or was stopped)."""
 
 
 def _never() -> bool:
@@ -139,8 +142,11 @@ class RunLoop:
     def run(self, frames: Iterable[Frame]) -> RunEstimate:
         """Every frame through the stages, then the estimate (the camera worker is stopped
         on the way out, whatever happens). Ctrl-C stops reading: the estimate then holds what
-        was processed so far, with ``interrupted`` set."""
-        interrupted = False
+        was processed so far, with ``interrupted`` set. A stage that fails (a
+        :class:`SmokySlamError`) stops it too: the estimate holds what came before, with
+        ``failure`` set."""
+        interrupted, failure = False, None
+        stamp_s = 0.0
         # A Ctrl-C is acted on between frames: the frame in hand goes through every stage (the
         # graph, the maps and the health agree), and no wait on a worker is cut short.
         with DeferredCtrlC() as ctrl_c:
@@ -149,6 +155,7 @@ class RunLoop:
                     for frame in frames:
                         if ctrl_c.take() or self._should_stop():
                             raise KeyboardInterrupt  # a requested stop is a Ctrl-C
+                        stamp_s = frame.stamp_s
                         self._read(frame)
                         self._hand_over(keep=MAX_LAG)
                     self._finish()
@@ -161,12 +168,15 @@ class RunLoop:
                     logger.info("interrupted: keeping what was processed so far")
                     self._hand_over(keep=len(self._order) + 1)  # what is done, not waiting
                     self._flush_localizer()
+                except SmokySlamError as exc:  # nothing more goes through the broken stage
+                    failure = f"run stopped at {stamp_s:.1f} s of log: {exc}"
+                    logger.error("%s; keeping what was processed before", failure)
             finally:
                 if self.stages.camera is not None:
                     self.stages.camera.shutdown()
                 interrupted |= ctrl_c.take()  # one while stopping: the estimate is kept
         estimate = self._estimate()
-        estimate.interrupted = interrupted
+        estimate.interrupted, estimate.failure = interrupted, failure
         return estimate
 
     # ------------------------------------------------------------------ reading

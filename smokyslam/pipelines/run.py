@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from smokyslam.config import SmokySlamConfig
-from smokyslam.errors import RunInterruptedError
+from smokyslam.errors import RunFailedError, RunInterruptedError
 from smokyslam.evaluation.run_evaluation import RunEvaluation, evaluate_estimate
 from smokyslam.evaluation.step_errors import step_errors
 from smokyslam.frontends.readers.base import LogReader
@@ -163,6 +163,8 @@ def run_reader(
         estimate = run_source(reader, source, config, on_progress, recorder, should_stop)
         if estimate.interrupted:  # marked first: a stop may cut the writing short
             out.update_metrics({"interrupted": True})
+        if estimate.failure:
+            out.update_metrics({"failed": estimate.failure})
         # Written whole on a first Ctrl-C (no wait on the up-sampler cut short); a second
         # one stops the writing, keeping what was written.
         with _dense_closed(estimate), DeferredCtrlC():
@@ -190,4 +192,6 @@ def run_reader(
     logger.info("%s run on %s: %.1f s of log in %.1f s", source, reader.path, duration_s, wall_s)
     if estimate.interrupted:
         raise RunInterruptedError(out.root)
+    if estimate.failure:
+        raise RunFailedError(estimate.failure, out.root)
     return RunResult(source, out.root, metrics, estimate)

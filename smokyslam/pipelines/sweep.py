@@ -77,9 +77,9 @@ def plan(spec: Sweep, out_dir: Path) -> list[SweepJob]:
 
 
 def finished(run_dir: Path) -> dict | None:
-    """The metrics of a run that finished (not interrupted), else None."""
+    """The metrics of a run that finished (neither interrupted nor failed), else None."""
     metrics = written_metrics(run_dir)
-    if "realtime_factor" in metrics and not metrics.get("interrupted"):
+    if "realtime_factor" in metrics and not (metrics.get("interrupted") or metrics.get("failed")):
         return metrics
     return None
 
