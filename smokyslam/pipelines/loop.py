@@ -320,9 +320,11 @@ class RunLoop:
         backend = self.stages.backend
         stamps_s, poses = backend.trajectory()
         busy_s = sum(self._clock.seconds.values())
-        camera_weight = np.asarray(backend.camera_weight, dtype=float)
+        # A stage that failed part-way through a frame leaves it out of the trajectory.
+        camera_weight = np.asarray(backend.camera_weight, dtype=float)[: len(stamps_s)]
         # Lost: the primary odometry could not measure and no healthy camera carried the pose.
-        lost = np.asarray(backend.frame_lost, dtype=bool) & (camera_weight <= 0.0)
+        frame_lost = np.asarray(backend.frame_lost, dtype=bool)[: len(stamps_s)]
+        lost = frame_lost & (camera_weight <= 0.0)
         factors = backend.factor_counts
         graph = {
             "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure")},
