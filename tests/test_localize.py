@@ -72,9 +72,11 @@ def test_it_recovers_after_a_kidnapping():
     # Kidnapped: carried to the far end of the other arm of the L, the odometry none the
     # wiser, walking back towards the corner. (Walking away from it, the view down an arm is
     # the view down the other: no filter could tell where it is.) Measured over 8 seeds:
-    # recovered for good after 23-30 frames (13-33 with injection from a 20 % fall of the fit).
-    back = 9.0 - 0.1 * np.arange(40)
-    second = np.column_stack([np.full(40, 1.25), back, np.full(40, -np.pi / 2)])
+    # recovered for good after 27-30 frames (23-35 without the look back along the rays and
+    # with injected particles weighed as resampled ones; 13-33 with injection from a 20 %
+    # fall of the fit).
+    back = 9.0 - 0.1 * np.arange(48)
+    second = np.column_stack([np.full(48, 1.25), back, np.full(48, -np.pi / 2)])
     errors = []
     for k in range(len(second)):
         step = se2_between(second[k - 1], second[k]) if k else se2_between(first[-1], first[-1])
@@ -151,7 +153,10 @@ def test_a_kidnapping_after_a_global_start_is_noticed_once_the_cloud_has_settled
     a global start the long one began with a cloud spread over the whole hall, which fits far
     worse than the settled cloud; once the cloud settles, it starts over from the short one.
     Measured over 6 seeds: recovered within 20 frames in 6 (injecting from the 7th frame); with
-    the long average left where the spread cloud put it, in 2 (injecting from the 12th)."""
+    the long average left where the spread cloud put it, in 2 (injecting from the 12th).
+    Injected particles now start at a tenth of a resampled one's weight (a prior against
+    jumps), so the cloud moves later: recovered for good after 9-30 frames over the 6 seeds
+    (9-20 with equal weights)."""
     world, rng = symmetric_hall(), np.random.default_rng(1)
     settings = LocalizeConfig(seed=1)
     mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
@@ -164,13 +169,13 @@ def test_a_kidnapping_after_a_global_start_is_noticed_once_the_cloud_has_settled
         mcl.update(scan(world, truth[k], rng, max_range_m=5.0))
     assert share_near(mcl, truth[-1]) > 0.95
     # Kidnapped: carried back to x = 6 m, the odometry none the wiser.
-    kidnapped = np.column_stack([6.0 + 0.2 * np.arange(20), np.ones(20), np.zeros(20)])
+    kidnapped = np.column_stack([6.0 + 0.2 * np.arange(40), np.ones(40), np.zeros(40)])
     errors = []
     for pose in kidnapped:
         mcl.predict(np.array([0.2, 0.0, 0.0]), STEP_COV)
         mcl.update(scan(world, pose, rng, max_range_m=5.0))
         errors.append(np.hypot(*(mcl.estimate()[0][:2] - pose[:2])))
-    assert errors[0] > 4.0 and errors[-1] < 0.2, errors
+    assert errors[0] > 4.0 and np.all(np.array(errors[-8:]) < 0.2), errors
 
 
 def test_a_map_without_an_occupied_cell_is_refused():
@@ -187,7 +192,7 @@ def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
     cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
     cells[:20] = FREE
     cells[20] = OCCUPIED  # the wall along y = 2.0-2.1 m; nothing seen behind it
-    settings = LocalizeConfig()
+    settings = LocalizeConfig(ray_check_m=[])  # the field alone (rays: the next test)
     field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), settings)
     at_origin = np.zeros((1, 3))
     front, on, behind, far = ([[2.0, y]] for y in (1.95, 2.05, 2.15, 3.85))
@@ -201,6 +206,36 @@ def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
     # The filter may score unknown space higher (while tracking); walls score as before.
     far, on = (field.log_likelihood(at_origin, np.array(p), 0.3)[0] for p in (far, on))
     assert far == pytest.approx(np.log(0.3)) and on == pytest.approx(score["on"])
+
+
+def test_a_point_whose_ray_went_through_a_wall_scores_less():
+    """A return is the first surface on its ray. A point beyond a wall, whose ray crosses it
+    at one of the places ``ray_check_m`` before the point, loses a factor ``ray_blocked``;
+    points in front of the wall and on it keep the field's score. Which side is beyond
+    depends on where the radar is (``seen_from``)."""
+    cells = np.full((40, 40), FREE, dtype=np.int8)
+    cells[20] = OCCUPIED  # a wall along y = 2.0-2.1 m, open space on both sides
+    spec = GridSpec((0.0, 0.0), 0.1, cells.shape)
+    settings = LocalizeConfig()
+    rays = LikelihoodField(cells, spec, settings)
+    alone = LikelihoodField(cells, spec, LocalizeConfig(ray_check_m=[]))
+    at_origin = np.zeros((1, 3))
+    blocked = np.log(settings.ray_blocked)
+    front, on, beyond = ([[2.0, y]] for y in (1.85, 2.05, 2.25))  # straight up from (2, 0)
+
+    def loss(field, point):
+        return (
+            field.log_likelihood(at_origin, np.array(point))[0]
+            - alone.log_likelihood(at_origin, np.array(point))[0]
+        )
+
+    below, above = rays.seen_from(np.array([2.0, 0.0])), rays.seen_from(np.array([2.0, 3.5]))
+    # From below, 0.2 m back from the point beyond the wall lies in the wall (2.05 m).
+    assert [loss(below, p) for p in (front, on, beyond)] == pytest.approx([0.0, 0.0, blocked])
+    # From above, the point at 1.85 m is the one beyond the wall (0.2 m back: 2.05 m).
+    assert [loss(above, p) for p in (front, on, beyond)] == pytest.approx([blocked, 0.0, 0.0])
+    with pytest.raises(ValueError, match="ray_check_m"):
+        LocalizeConfig(ray_check_m=[0.2, -0.1])
 
 
 def test_the_bench_runs_the_filter_at_its_particle_count():

@@ -59,6 +59,25 @@ class LocalizeConfig(_Section):
         description="the same while tracking from a given start (a search keeps p_unknown):"
         " near a trusted pose, a point in unknown space most likely hit something unmapped",
     )
+    ray_check_m: list[float] = Field(
+        [0.2, 0.4],
+        description="distances before each point along its ray (from the radar) where the map"
+        " should not be occupied: a return is the first surface on its ray. [] turns it off",
+    )
+    ray_blocked: float = Field(
+        0.3,
+        gt=0.0,
+        le=1.0,
+        description="factor on a point's likelihood for each of those places the map has"
+        " occupied (its ray went through a wall)",
+    )
+    inject_weight: float = Field(
+        0.1,
+        gt=0.0,
+        le=1.0,
+        description="weight of a particle injected by augmented MCL against one resampled: a"
+        " prior against jumps; the injected place must out-fit the cloud for a few scans",
+    )
     init_sigma_m: float = Field(1.0, gt=0.0, description="tracking start: position sigma")
     init_sigma_deg: float = Field(15.0, gt=0.0, description="tracking start: heading sigma")
     converged_m: float = Field(
@@ -88,4 +107,6 @@ class LocalizeConfig(_Section):
     def _ordered(self) -> LocalizeConfig:
         if self.min_particles > self.max_particles:
             raise ValueError("min_particles must not exceed max_particles")
+        if any(d <= 0 for d in self.ray_check_m):
+            raise ValueError("ray_check_m distances must be positive")
         return self

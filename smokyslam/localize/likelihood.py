@@ -9,10 +9,24 @@ point just behind it is as near it as one just in front (scoring unknown space f
 the filter about 0.25 m off on sparse radar maps). A point off the map gets ``p_unknown``.
 The caller may pass its own ``p_unknown`` (the filter scores unknown space higher while it
 tracks than while it searches, ``MonteCarloLocalizer.p_unknown``); a table per value is kept.
+
+A likelihood field scores a point by its distance to the nearest wall, whichever side of it
+the point lies on, but a radar return is the first surface on its ray. Its ray cannot have
+gone through a wall just before it. Without that the field is lopsided: seen from inside a
+room, the space beyond its walls is full of other walls, and the room itself is open. A pose
+too far forward puts the points just beyond the walls ahead, near those surfaces, and costs
+little. A pose too far back puts them in open space, and costs much. Measured on simulated
+offices, the filter then sat 0.06-0.07 m ahead of the truth along the heading. So each point
+also looks back along its ray, from the radar (:meth:`seen_from`), at ``ray_check_m``. Every
+place there that the map has occupied multiplies the point's likelihood by ``ray_blocked``.
+The places must be at least :data:`MIN_CHECK_RANGE_M` from the radar.
+
 Evaluated for P particles x N points at once (numpy, no loop over particles).
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 from scipy.ndimage import binary_dilation, distance_transform_edt
@@ -21,6 +35,9 @@ from smokyslam.config import LocalizeConfig
 from smokyslam.errors import MapError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
+
+MIN_CHECK_RANGE_M = 0.3
+"""Places looked at along a ray lie at least this far from the radar (its least range)."""
 
 
 class LikelihoodField:
@@ -43,6 +60,12 @@ class LikelihoodField:
         p_hit = np.exp(-0.5 * (distance_m / sigma_m) ** 2) / (np.sqrt(2 * np.pi) * sigma_m)
         self._likelihood = z_hit * p_hit + z_rand / max_range_m
         self._unknown = cells == UNKNOWN
+        self._occupied = occupied
+        self._occupied_flat = np.pad(occupied, 1).astype(np.int8).ravel()
+        self._ray_check_m = np.asarray(config.ray_check_m, dtype=float)
+        self._log_blocked = float(np.log(config.ray_blocked))
+        self.sensor_xy_m = np.zeros(2)
+        """Where the rays start, in the frame of the points (base_link): the radar."""
         self._tables: dict[float, np.ndarray] = {}
         self.p_unknown = p_unknown
         """The ``p_unknown`` used when :meth:`log_likelihood` is given none."""
@@ -51,13 +74,22 @@ class LikelihoodField:
         self.free_xy = spec.centres_of(np.column_stack([ix, iy]))
         """(M, 2) centres of the free cells: where a global search spreads its particles."""
 
+    def seen_from(self, sensor_xy_m: np.ndarray) -> LikelihoodField:
+        """This field, for points whose rays start at (2,) ``sensor_xy_m`` in their frame (the
+        radar's position on base_link). The tables are shared."""
+        field = copy.copy(self)
+        field.sensor_xy_m = np.asarray(sensor_xy_m, dtype=float).reshape(2)
+        return field
+
     def _table(self, p_unknown: float) -> np.ndarray:
-        """The (rows, cols) log-likelihood of a point in each cell, unknown cells at least
-        ``p_unknown`` (one table per value, made once)."""
+        """The flat log-likelihood of a point in each cell of the map padded by one cell
+        (the padding: off the map, ``log(p_unknown)``), unknown cells at least ``p_unknown``
+        (one table per value, made once)."""
         if p_unknown not in self._tables:
             likelihood = self._likelihood.copy()
             likelihood[self._unknown] = np.maximum(likelihood[self._unknown], p_unknown)
-            self._tables[p_unknown] = np.log(likelihood).astype(np.float32)
+            padded = np.pad(likelihood, 1, constant_values=p_unknown)
+            self._tables[p_unknown] = np.log(padded).astype(np.float32).ravel()
         return self._tables[p_unknown]
 
     def log_likelihood(
@@ -65,20 +97,57 @@ class LikelihoodField:
     ) -> np.ndarray:
         """(P,) summed log-likelihood of (N, 2) base-frame points seen from (P, 3) poses, a
         point in unknown space or off the map scoring at least ``p_unknown`` (default: the
-        config's)."""
+        config's), and ``log(ray_blocked)`` for each place before a point that its ray went
+        through a wall at."""
         particles = np.asarray(particles, dtype=float).reshape(-1, 3)
         points = np.asarray(points_xy, dtype=float).reshape(-1, 2)
         if len(points) == 0:
             return np.zeros(len(particles))
-        c, s = np.cos(particles[:, 2])[:, None], np.sin(particles[:, 2])[:, None]
-        x = particles[:, 0:1] + c * points[None, :, 0] - s * points[None, :, 1]
-        y = particles[:, 1:2] + s * points[None, :, 0] + c * points[None, :, 1]
-        ix = np.floor((x - self.spec.origin_xy_m[0]) / self.spec.resolution_m).astype(np.int64)
-        iy = np.floor((y - self.spec.origin_xy_m[1]) / self.spec.resolution_m).astype(np.int64)
         p_unknown = self.p_unknown if p_unknown is None else float(p_unknown)
         table = self._table(p_unknown)
-        rows, cols = table.shape
-        inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
-        values = np.full(ix.shape, np.log(p_unknown), dtype=float)
-        values[inside] = table[iy[inside], ix[inside]]
-        return values.sum(axis=1)
+        behind = self._places_before(points)
+        cells = self._cells_of(particles, np.vstack([points, behind]))
+        n = len(points)
+        score = np.take(table, cells[:, :n]).sum(axis=1, dtype=float)
+        if len(behind):
+            score += self._log_blocked * np.take(self._occupied_flat, cells[:, n:]).sum(axis=1)
+        return score
+
+    def _places_before(self, points: np.ndarray) -> np.ndarray:
+        """(M, 2) the places ``ray_check_m`` before each point on its ray from the sensor,
+        those at least :data:`MIN_CHECK_RANGE_M` from it."""
+        ray = points - self.sensor_xy_m
+        reach = np.linalg.norm(ray, axis=1)
+        unit = ray / np.maximum(reach, 1e-9)[:, None]
+        places = [
+            points[reach - back >= MIN_CHECK_RANGE_M]
+            - back * unit[reach - back >= MIN_CHECK_RANGE_M]
+            for back in self._ray_check_m
+        ]
+        return np.vstack([np.zeros((0, 2)), *places])
+
+    def _cells_of(self, particles: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(P, N) flat index, in the padded tables, of the cell of every point seen from
+        every pose (points off the map: a padding cell)."""
+        rows, cols = self._occupied.shape
+        inverse = 1.0 / self.spec.resolution_m
+        # in cells of the padded grid (cell 0 is the padding), single precision (a map of
+        # 10^4 cells a side stays within 10^-3 of a cell): clipping keeps every point off
+        # the map in a padding cell, and truncation floors what stays non-negative
+        c = np.cos(particles[:, 2:3]).astype(np.float32)
+        s = np.sin(particles[:, 2:3]).astype(np.float32)
+        px = (points[:, 0] * inverse).astype(np.float32)
+        py = (points[:, 1] * inverse).astype(np.float32)
+        origin = (particles[:, :2] - self.spec.origin_xy_m) * inverse + 1.0
+        col = c * px
+        col -= s * py
+        col += origin[:, 0:1].astype(np.float32)
+        row = s * px
+        row += c * py
+        row += origin[:, 1:2].astype(np.float32)
+        np.clip(col, 0.0, cols + 1.0, out=col)
+        np.clip(row, 0.0, rows + 1.0, out=row)
+        index = row.astype(np.int32)
+        index *= cols + 2
+        index += col.astype(np.int32)
+        return index

@@ -172,15 +172,23 @@ class MonteCarloLocalizer:
 
     def _resample(self, inject: float, points_xy: np.ndarray) -> None:
         """Low-variance resampling to the KLD count, with particles injected with
-        probability max(0, 1 - w_fast / w_slow), drawn where the current scan fits."""
+        probability max(0, 1 - w_fast / w_slow), drawn where the current scan fits.
+
+        Injected particles start at ``inject_weight`` of a resampled one's weight. Drawn as
+        the best fits of many random poses to one scan, they beat the cloud at once wherever
+        the scan alone is ambiguous. Measured with equal weights: a global start that had
+        found the pose turned on the spot, its fit fell 20 %, and the estimate jumped 8-12 m
+        to such a place for 1-3 s. That happened in 4 of 10 office walks."""
         # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
         particles = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < inject
-        if fresh.any():
-            particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
-        self.set.reset(particles)
+        if not fresh.any():
+            self.set.reset(particles)
+            return
+        particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
+        self.set.reset(particles, np.where(fresh, self.settings.inject_weight, 1.0))
 
     def _bins(self) -> np.ndarray:
         """(P, 3) int KLD histogram bins of the particles."""

@@ -23,11 +23,15 @@ class ParticleSet:
     def __len__(self) -> int:
         return len(self.poses)
 
-    def reset(self, poses: np.ndarray) -> None:
-        """Take (P, 3) ``poses`` (yaw wrapped), equally weighted."""
+    def reset(self, poses: np.ndarray, weights: np.ndarray | None = None) -> None:
+        """Take (P, 3) ``poses`` (yaw wrapped), equally weighted or by (P,) ``weights``
+        (normalised here)."""
         self.poses = np.asarray(poses, dtype=float)
         self.poses[:, 2] = wrap_angle(self.poses[:, 2])
-        self.weights = np.full(len(self.poses), 1.0 / max(len(self.poses), 1))
+        if weights is None:
+            self.weights = np.full(len(self.poses), 1.0 / max(len(self.poses), 1))
+        else:
+            self.weights = np.asarray(weights, dtype=float) / float(np.sum(weights))
         self.version += 1
 
     def move(self, delta: np.ndarray, covariance: np.ndarray, rng: np.random.Generator) -> None:

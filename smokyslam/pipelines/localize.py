@@ -130,7 +130,8 @@ def localize_reader(
             RecordingSetup("localize", extrinsics, None, reader.log_time_s, truth, gt_map)
         )
         stages = build_stages(SOURCE, reader, config, recorder)
-        mcl = MonteCarloLocalizer(field, config.localize)
+        radar_on_base = stages.radar.pose_base_radar[:2]  # where the points' rays start
+        mcl = MonteCarloLocalizer(field.seen_from(radar_on_base), config.localize)
         camera = None
         if stages.camera is not None:  # radar frames' steps, at the scale of SLAM's keyframes
             scale = SharedScale(stages.backend.camera_scale)
