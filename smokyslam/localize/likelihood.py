@@ -119,12 +119,11 @@ class LikelihoodField:
         ray = points - self.sensor_xy_m
         reach = np.linalg.norm(ray, axis=1)
         unit = ray / np.maximum(reach, 1e-9)[:, None]
-        places = [
-            points[reach - back >= MIN_CHECK_RANGE_M]
-            - back * unit[reach - back >= MIN_CHECK_RANGE_M]
-            for back in self._ray_check_m
-        ]
-        return np.vstack([np.zeros((0, 2)), *places])
+        places = [np.zeros((0, 2))]
+        for back in self._ray_check_m:
+            far_enough = reach - back >= MIN_CHECK_RANGE_M
+            places.append(points[far_enough] - back * unit[far_enough])
+        return np.vstack(places)
 
     def _cells_of(self, particles: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(P, N) flat index, in the padded tables, of the cell of every point seen from
