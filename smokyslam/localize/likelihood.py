@@ -60,7 +60,6 @@ class LikelihoodField:
         p_hit = np.exp(-0.5 * (distance_m / sigma_m) ** 2) / (np.sqrt(2 * np.pi) * sigma_m)
         self._likelihood = z_hit * p_hit + z_rand / max_range_m
         self._unknown = cells == UNKNOWN
-        self._occupied = occupied
         self._occupied_flat = np.pad(occupied, 1).astype(np.int8).ravel()
         self._ray_check_m = np.asarray(config.ray_check_m, dtype=float)
         self._log_blocked = float(np.log(config.ray_blocked))
@@ -128,7 +127,7 @@ class LikelihoodField:
     def _cells_of(self, particles: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(P, N) flat index, in the padded tables, of the cell of every point seen from
         every pose (points off the map: a padding cell)."""
-        rows, cols = self._occupied.shape
+        rows, cols = self._likelihood.shape
         inverse = 1.0 / self.spec.resolution_m
         # in cells of the padded grid (cell 0 is the padding), single precision (a map of
         # 10^4 cells a side stays within 10^-3 of a cell): clipping keeps every point off

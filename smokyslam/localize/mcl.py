@@ -184,10 +184,8 @@ class MonteCarloLocalizer:
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
         particles = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < inject
-        if not fresh.any():
-            self.set.reset(particles)
-            return
-        particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
+        if fresh.any():
+            particles[fresh] = self._likely_particles(int(fresh.sum()), points_xy)
         self.set.reset(particles, np.where(fresh, self.settings.inject_weight, 1.0))
 
     def _bins(self) -> np.ndarray:
