@@ -256,3 +256,27 @@ def test_frames_decode_only_the_streams_asked_for(log: tuple[Path, dict]) -> Non
     assert all(f.depth_m is not None for f in with_depth)
     with pytest.raises(TopicError, match="unknown sensor streams"):
         list(reader.frames(("ground_truth_pose",)))
+
+
+def test_queries_while_frames_are_paused_read_what_a_fresh_reader_reads(
+    log: tuple[Path, dict],
+) -> None:
+    """One reader answers many queries (an open file is kept for the next): a query in the
+    middle of a paused frame stream, and a stream left unfinished, change nothing read."""
+    path, written = log
+    reader = RosbagReader(path, TopicsConfig())
+    frames = reader.frames()
+    head = [next(frames) for _ in range(3)]
+    truth = reader.ground_truth_trajectory()  # while the stream is paused mid-log
+    ground_map = reader.ground_truth_map()
+    stamps = [f.stamp_s for f in head] + [f.stamp_s for f in frames]
+    unfinished = reader.frames(("radar",))
+    next(unfinished)
+    del unfinished
+    fresh = RosbagReader(path, TopicsConfig())
+    assert stamps == [f.stamp_s for f in fresh.frames()]
+    assert [f.stamp_s for f in reader.frames()] == stamps
+    assert len(truth.stamps_s) == len(written["poses"]) == 5
+    again = fresh.ground_truth_trajectory().poses_world_base
+    np.testing.assert_allclose(truth.poses_world_base, again)
+    np.testing.assert_array_equal(ground_map.cells, fresh.ground_truth_map().cells)

@@ -255,7 +255,7 @@ def test_the_refresher_up_samples_in_the_background_at_its_period():
         expected = get_upsampler(config).values(sparse, spec)
         np.testing.assert_array_equal(refresher.latest.values, expected)
         assert not refresher.due(4.9) and refresher.due(5.0)
-        np.testing.assert_array_equal(refresher.final(sparse, spec).values, expected)
+        np.testing.assert_array_equal(refresher.final(sparse, spec).result().values, expected)
         assert refresher.stats()["refreshes"] == 1
     finally:
         refresher.close()

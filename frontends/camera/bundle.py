@@ -58,11 +58,9 @@ def _residuals_and_jacobians(
     projected, _, J_obs, J_point = project_planar_jacobians(obs_pose, points, K)
     offset = points[:, :2] - anchor_pose[:, :2]
     dP_dyaw = np.column_stack([-offset[:, 1], offset[:, 0], np.zeros(len(rho))])
-    J_anchor = np.concatenate(
-        [J_point[:, :, :2], np.einsum("nij,nj->ni", J_point, dP_dyaw)[:, :, None]], axis=2
-    )
+    J_anchor = np.concatenate([J_point[:, :, :2], (J_point @ dP_dyaw[:, :, None])], axis=2)
     dP_drho = -(points - np.column_stack([anchor_pose[:, :2], np.zeros(len(rho))])) / rho[:, None]
-    J_rho = np.einsum("nij,nj->ni", J_point, dP_drho)
+    J_rho = (J_point @ dP_drho[:, :, None])[:, :, 0]
     return projected - uv, J_anchor, J_obs, J_rho
 
 
@@ -108,9 +106,11 @@ def adjust(problem: WindowProblem, K: np.ndarray, iterations: int = 5) -> np.nda
                 J_pose[rows, :, col[rows] + k] += J[rows, :, k]
         norm = np.linalg.norm(r, axis=1)
         w = np.where(norm <= HUBER_PX, 1.0, HUBER_PX / np.maximum(norm, 1e-12))
-        H_pp = np.einsum("oaj,o,oak->jk", J_pose, w, J_pose)[:n_pose, :n_pose]
-        g_p = np.einsum("oaj,o,oa->j", J_pose, w, r)[:n_pose]
-        H_pl_obs = np.einsum("oaj,o,oa->oj", J_pose, w, J_rho)[:, :n_pose]
+        Jw = J_pose * w[:, None, None]
+        rows_pose, rows_weighted = J_pose.reshape(-1, J_pose.shape[2]), Jw.reshape(-1, Jw.shape[2])
+        H_pp = (rows_weighted.T @ rows_pose)[:n_pose, :n_pose]
+        g_p = (rows_weighted.T @ r.reshape(-1))[:n_pose]
+        H_pl_obs = np.einsum("oaj,oa->oj", Jw, J_rho)[:, :n_pose]
         H_pl = np.stack(
             [np.bincount(lm, H_pl_obs[:, j], minlength=n_lm) for j in range(n_pose)], axis=1
         ).reshape(n_lm, n_pose)

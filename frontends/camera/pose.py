@@ -80,7 +80,7 @@ def project_planar_jacobians(
     D[:, 0, 2] = -K[0, 0] * p[:, 0] * inv_z**2
     D[:, 1, 1] = K[1, 1] * inv_z
     D[:, 1, 2] = -K[1, 1] * p[:, 1] * inv_z**2
-    M = np.einsum("nij,kj->nik", D, R_BODY_OPTICAL)  # d pixel / d body point
+    M = D @ R_BODY_OPTICAL.T  # d pixel / d body point
     c, s = np.broadcast_to(c, z.shape)[:, None], np.broadcast_to(s, z.shape)[:, None]
     J_point = np.stack([M[:, :, 0] * c - M[:, :, 1] * s, M[:, :, 0] * s + M[:, :, 1] * c], -1)
     J_point = np.concatenate([J_point, M[:, :, 2:]], axis=2)

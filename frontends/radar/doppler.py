@@ -8,6 +8,7 @@ least squares on the inliers gives the velocity and its covariance.
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -40,8 +41,16 @@ ENUMERATED_PAIRS = 20_000
 beyond it pairs are drawn directly (memory stays linear in the points)."""
 
 
-def _pair_indices(n: int, max_hypotheses: int, rng: np.random.Generator) -> np.ndarray:
-    """(H, 2) point pairs: all of them when few enough, else a random subset."""
+@functools.lru_cache(maxsize=256)
+def _pair_indices(n: int, max_hypotheses: int, seed: int) -> np.ndarray:
+    """(H, 2) point pairs: all of them when few enough, else a random subset drawn with
+    ``seed``. The same for every frame of ``n`` points, so kept (read-only) once drawn."""
+    pairs = _draw_pairs(n, max_hypotheses, np.random.default_rng(seed))
+    pairs.flags.writeable = False
+    return pairs
+
+
+def _draw_pairs(n: int, max_hypotheses: int, rng: np.random.Generator) -> np.ndarray:
     if n * (n - 1) // 2 > ENUMERATED_PAIRS:
         drawn = np.sort(rng.integers(0, n, size=(2 * max_hypotheses, 2)), axis=1)
         drawn = drawn[drawn[:, 0] != drawn[:, 1]]
@@ -104,7 +113,7 @@ def estimate_ego_velocity(
     if n < max(min_inliers, 2):
         return _invalid(n)
 
-    pairs = _pair_indices(n, max_hypotheses, np.random.default_rng(seed))
+    pairs = _pair_indices(n, max_hypotheses, seed)
     ua, ub = directions[pairs[:, 0]], directions[pairs[:, 1]]
     det = ua[:, 0] * ub[:, 1] - ua[:, 1] * ub[:, 0]
     well_posed = np.abs(det) > np.sin(np.radians(5.0))

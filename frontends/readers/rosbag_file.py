@@ -12,7 +12,10 @@ itself is broken (``clock.py``).
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import threading
+import weakref
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -32,6 +35,18 @@ logger = logging.getLogger(__name__)
 
 _READ_ERRORS = (AnyReaderError, ReaderError1, ReaderError2)
 NS = 1e-9
+
+
+def _closed(reader: AnyReader | None) -> None:
+    """Close ``reader`` (if any): after a failure it is not kept."""
+    if reader is not None:
+        with contextlib.suppress(Exception):
+            reader.close()
+
+
+def _close_all(readers: list[AnyReader]) -> None:
+    while readers:
+        _closed(readers.pop())
 
 
 def format_of(path: Path) -> str:
@@ -56,25 +71,38 @@ class RosbagFile:
         """Where the file breaks off, when it does (what was read before is used)."""
         self.undecodable = 0
         """Messages skipped because they did not decode."""
+        self._idle: list[AnyReader] = []  # at most one open reader, kept for the next use
+        self._lock = threading.Lock()
+        weakref.finalize(self, _close_all, self._idle)
         with self.open() as reader:
             self.types = {topic: info.msgtype or "?" for topic, info in reader.topics.items()}
 
     @contextmanager
     def open(self) -> Iterator[AnyReader | SalvagedLog]:
-        """An open AnyReader (or the salvaged records); every failure is one LogError."""
+        """An open AnyReader (or the salvaged records); every failure is one LogError.
+
+        Opening costs about 55 ms (rosbags parses every message definition and QoS profile
+        of the file), and a run asks about ten times (truth, maps, calibration, frames), so
+        a reader is kept open for the next use once this one ends; a use while another is
+        under way (a generator paused mid-log) opens its own."""
         if self._salvaged is not None:
             yield self._salvaged
             return
-        opened = False
+        reader, opened = self._take(), False
         try:
-            with AnyReader([self.path], default_typestore=self._store) as reader:
-                opened = True
-                yield reader
+            if reader is None:
+                reader = AnyReader([self.path], default_typestore=self._store)
+                reader.open()
+            opened = True
+            yield reader
         except SmokySlamError:
+            reader = _closed(reader)
             raise
         except FileNotFoundError:
+            reader = _closed(reader)
             raise LogError(f"log not found: {self.path}") from None
         except Exception as exc:  # a damaged file can break the parser anywhere
+            reader = _closed(reader)
             detail = str(exc) if isinstance(exc, _READ_ERRORS) else type(exc).__name__
             error = LogError(
                 f"{self.path}: cannot read {self.format}, truncated or corrupt ({detail})"
@@ -82,8 +110,27 @@ class RosbagFile:
             if opened or self.path.is_dir():
                 raise error from None
             self._salvage(error)
+        finally:
+            if reader is not None:
+                self._keep(reader)
         if self._salvaged is not None and not opened:
             yield self._salvaged
+
+    def close(self) -> None:
+        """Close the reader kept open (the next use opens the file again)."""
+        with self._lock:
+            _close_all(self._idle)
+
+    def _take(self) -> AnyReader | None:
+        with self._lock:
+            return self._idle.pop() if self._idle else None
+
+    def _keep(self, reader: AnyReader) -> None:
+        with self._lock:
+            if not self._idle:
+                self._idle.append(reader)
+                return
+        reader.close()
 
     def _salvage(self, error: LogError) -> None:
         salvaged = SalvagedLog(self.path, self._store)

@@ -22,6 +22,7 @@ the same poses and keyframes gives.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -191,17 +192,32 @@ class OnlineMaps:
     def render(self, T_target_map: np.ndarray) -> dict[str, OccupancyGrid | DenseMap | FusedMap]:
         """Every grid drawn afresh on the current poses moved by the rigid (3,) transform
         ``T_target_map`` [x_m, y_m, yaw_rad] (e.g. the run's alignment to ground truth)."""
+        return dict(self.render_each(T_target_map))
+
+    def render_each(
+        self, T_target_map: np.ndarray
+    ) -> Iterator[tuple[str, OccupancyGrid | DenseMap | FusedMap]]:
+        """As :meth:`render`, one ``(name, grid)`` at a time as each is drawn. The dense map
+        is up-sampled in the background meanwhile: a caller writes the maps before it (the
+        sparse and the visual map) while it is made."""
         target = np.asarray(T_target_map, dtype=float)
-        grids = {}
+        grids: dict[str, OccupancyGrid | DenseMap | FusedMap] = {}
+        dense = None
         if self._radar is not None and len(self._radar):
             poses = se2_compose(target, self._poses.keyframe_poses()).reshape(-1, 3)
             grids["radar_sparse"] = sparse = self._radar.render(poses)
             if self.dense is not None:
-                grids["radar_dense"] = self.dense.final(sparse.to_cells(), sparse.spec)
+                dense = self.dense.final(sparse.to_cells(), sparse.spec)
+            yield "radar_sparse", sparse
         if self._visual is not None and len(self._visual):
             grids["visual"] = self._visual_grid(target)
+            yield "visual", grids["visual"]
+        if dense is not None:
+            grids["radar_dense"] = dense.result()
+            yield "radar_dense", grids["radar_dense"]
         self._add_fused(grids, target)
-        return grids
+        if "fused" in grids:
+            yield "fused", grids["fused"]
 
     def visual_trust(self, target: np.ndarray, spec: GridSpec) -> tuple[np.ndarray, float]:
         """``(t grid over spec, the run's t)``: the trust index measured at the camera

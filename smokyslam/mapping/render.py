@@ -22,6 +22,9 @@ WALL_RED = np.array([230, 0, 0], dtype=float)
 PATH_BLUE = "#0050c8"
 FIGURE_WIDTH_IN, DPI = 7.0, 110
 """Every map picture is 7 inches (770 px) wide; its height follows the map's shape."""
+MARGINS_IN = {"left": 0.65, "right": 1.15, "bottom": 0.5, "top": 0.35}
+"""Room around the map for the axes' labels, the legend (right) and the title: fixed, so no
+layout engine measures the text (that took a third of each picture's time)."""
 
 
 def map_picture(
@@ -65,8 +68,18 @@ def render_map_png(
     except MapFileError:
         raise MapFileError(f"cannot render an empty map to {path}") from None
     rows, cols = canvas.shape
-    height_in = float(np.clip((FIGURE_WIDTH_IN - 1.8) * rows / cols + 1.0, 3.0, 10.0))
-    fig, ax = plt.subplots(figsize=(FIGURE_WIDTH_IN, height_in), dpi=DPI, layout="constrained")
+    margin_x_in = MARGINS_IN["left"] + MARGINS_IN["right"]
+    margin_y_in = MARGINS_IN["bottom"] + MARGINS_IN["top"]
+    height_in = float(
+        np.clip((FIGURE_WIDTH_IN - margin_x_in) * rows / cols + margin_y_in, 3.0, 10.0)
+    )
+    fig, ax = plt.subplots(figsize=(FIGURE_WIDTH_IN, height_in), dpi=DPI)
+    fig.subplots_adjust(
+        left=MARGINS_IN["left"] / FIGURE_WIDTH_IN,
+        right=1.0 - MARGINS_IN["right"] / FIGURE_WIDTH_IN,
+        bottom=MARGINS_IN["bottom"] / height_in,
+        top=1.0 - MARGINS_IN["top"] / height_in,
+    )
     ax.imshow(image, origin="lower", extent=canvas.extent_m, interpolation="nearest")
     handles = [
         Patch(facecolor="black", label="occupied"),

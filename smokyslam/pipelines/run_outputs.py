@@ -103,8 +103,9 @@ def write_maps(
     registration onto a radar map (``fuse``, ``paper-table``)."""
     path_xy = evaluation.to_truth.apply(estimate.poses_world_base)[:, :2]
     scored = gt_map is not None and evaluation.trajectory is not None
-    rendered = estimate.maps.render(evaluation.pose_truth_map)
-    for name, grid in rendered.items():
+    rendered = {}
+    for name, grid in estimate.maps.render_each(evaluation.pose_truth_map):
+        rendered[name] = grid
         cells = grid.to_cells()
         scores = map_scores(cells, grid.spec, gt_map, observed) if scored and cells.size else None
         caption = f"{source} run" + (score_text(scores) if scores else "")

@@ -96,19 +96,8 @@ def build_stages(
         loop_closures=source.loop_closures and config.slam.loop_closures,
     )
     visual_map = use_camera and (source.camera_only or config.slam.visual_map)
-    dense = None
-    if radar is not None and config.upsample.method != "none":
-        dense = DenseRefresher(config.upsample)  # loads the up-sampler in the background
-    maps = OnlineMaps(
-        config.mapping,
-        backend,
-        radar.pose_base_radar if radar is not None else None,
-        extrinsics.T_base_camera if visual_map else None,
-        dense,
-        MapFuser(config.fusion),
-    )
     camera = None
-    if use_camera:  # last: it may start a worker process, which the loop stops
+    if use_camera:  # before the up-sampler's thread loads torch, which slows a worker's start
         camera = CameraStage(
             intrinsics,
             config.camera_odometry,
@@ -118,6 +107,22 @@ def build_stages(
             worker=config.slam.camera_process and not source.camera_only,
             keep_views=recorder.keeps_camera_views,
         )
+    try:
+        dense = None
+        if radar is not None and config.upsample.method != "none":
+            dense = DenseRefresher(config.upsample)  # loads the up-sampler in the background
+        maps = OnlineMaps(
+            config.mapping,
+            backend,
+            radar.pose_base_radar if radar is not None else None,
+            extrinsics.T_base_camera if visual_map else None,
+            dense,
+            MapFuser(config.fusion),
+        )
+    except BaseException:  # the loop stops the camera's worker; without a loop, stop it here
+        if camera is not None:
+            camera.shutdown()
+        raise
     return Stages(
         smoke=smoke,
         radar=radar,

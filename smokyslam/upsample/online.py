@@ -6,7 +6,8 @@ the next is due is not queued: the next keyframe after it finishes starts one). 
 up-sampler itself (torch and the weights) is loaded on that thread first, so the run does
 not wait for it either; a weights file that cannot be used stops the run at the next
 keyframe with the error. The run's final dense map is made from the final sparse map, drawn
-on the final poses, by :meth:`DenseRefresher.final`.
+on the final poses, by :meth:`DenseRefresher.final`, in the background too: the run writes its
+other maps meanwhile.
 """
 
 from __future__ import annotations
@@ -88,20 +89,22 @@ class DenseRefresher:
             self.latest = job.result()
             self.refreshes += 1
 
-    def final(self, cells: np.ndarray, spec: GridSpec) -> DenseMap:
-        """The dense map of the final sparse map (waits for the loading and any refresh)."""
-        if self._job is not None:
-            self._job.result()
-            self._collect()
-        upsampler = self._loading.result()
+    def final(self, cells: np.ndarray, spec: GridSpec) -> Future[DenseMap]:
+        """The dense map of the final sparse map, made in the background (after the loading
+        and any refresh still running) while the caller goes on: its future."""
+        return self._pool.submit(self._final, cells, spec)
+
+    def _final(self, cells: np.ndarray, spec: GridSpec) -> DenseMap:
+        upsampler = self._loading.result()  # done: the pool runs one job at a time
         if self._torch_threads is not None:
             import torch
 
-            torch.set_num_threads(self._torch_threads)
+            torch.set_num_threads(self._torch_threads)  # the run is over: every core
         return upsample(upsampler, cells, spec)
 
     def stats(self) -> dict[str, float | int]:
         """``upsample`` in metrics.json: refreshes done and their mean seconds."""
+        self._collect()
         mean_s = self.busy_s / self.refreshes if self.refreshes else 0.0
         return {"refreshes": self.refreshes, "refresh_mean_s": mean_s}
 
