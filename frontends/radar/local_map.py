@@ -68,7 +68,13 @@ class LocalMap:
         all_keys = np.concatenate([self._keys, keys[~full]])
         near = np.sum((all_points - sensor_xy) ** 2, axis=1) <= self._radius_m**2
         self.points_xy, self._keys = all_points[near], all_keys[near]
-        self.tree = cKDTree(self.points_xy) if len(self.points_xy) >= 3 else None
+        # Rebuilt every frame: an unbalanced, uncompacted tree builds 1.5-3x faster (thousands
+        # of points) and answers the frame's few dozen queries as fast.
+        self.tree = (
+            cKDTree(self.points_xy, balanced_tree=False, compact_nodes=False)
+            if len(self.points_xy) >= 3
+            else None
+        )
 
     def lines_at(self, query_xy: np.ndarray, max_distance_m: float) -> LineMatches:
         """Fit a line to the map points nearest each of the (N, 2) query points."""
