@@ -38,7 +38,8 @@ NS = 1e-9
 
 
 def _closed(reader: AnyReader | None) -> None:
-    """Close ``reader`` (if any): after a failure it is not kept."""
+    """Close ``reader`` (if any) and give None, so ``reader = _closed(reader)`` forgets it: a
+    reader that failed is not kept for the next use."""
     if reader is not None:
         with contextlib.suppress(Exception):
             reader.close()
