@@ -235,14 +235,15 @@ def test_get_upsampler_names_the_choices(tmp_path):
         get_upsampler(config)
 
 
-def test_the_refresher_up_samples_in_the_background_at_its_period():
+@pytest.mark.parametrize("worker_process", [True, False])
+def test_the_refresher_up_samples_in_the_background_at_its_period(worker_process):
     import time
 
     from smokyslam.upsample.online import DenseRefresher
 
     sparse, _ = _sparse_room()
     spec = GridSpec((0.0, 0.0), 0.1, sparse.shape)
-    config = UpsampleConfig(method="classical", refresh_period_s=5.0)
+    config = UpsampleConfig(method="classical", refresh_period_s=5.0, worker_process=worker_process)
     refresher = DenseRefresher(config)
     try:
         assert refresher.due(0.0)
@@ -261,13 +262,15 @@ def test_the_refresher_up_samples_in_the_background_at_its_period():
         refresher.close()
 
 
-def test_unusable_weights_stop_the_run_at_the_next_keyframe(tmp_path):
+@pytest.mark.parametrize("worker_process", [True, False])
+def test_unusable_weights_stop_the_run_at_the_next_keyframe(tmp_path, worker_process):
     import time
 
     from smokyslam.upsample.online import DenseRefresher
 
     (tmp_path / "junk.pt").write_bytes(b"junk")
-    refresher = DenseRefresher(UpsampleConfig(weights=str(tmp_path / "junk.pt")))
+    config = UpsampleConfig(weights=str(tmp_path / "junk.pt"), worker_process=worker_process)
+    refresher = DenseRefresher(config)
     sparse, _ = _sparse_room()
     try:
         refresher.refresh(0.0, sparse, GridSpec((0.0, 0.0), 0.1, sparse.shape))

@@ -78,6 +78,11 @@ class UpsampleConfig(_Section):
     refresh_period_s: float = Field(
         5.0, gt=0.0, description="log seconds between background refreshes during a run"
     )
+    worker_process: bool = Field(
+        True,
+        description="up-sample in a worker process during a run (off: on a thread of the run's"
+        " own process)",
+    )
     # The classical baseline's radii: the best error index on training worlds (seeds < 30)
     # over walls 1-3 cells and gaps up to 1.5 m.
     closing_radius_cells: int = Field(1, ge=1, description="classical: wall closing radius")

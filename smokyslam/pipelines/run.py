@@ -64,7 +64,12 @@ def run_source(
     own map frame. The reader's ground truth is never touched. ``should_stop``: see
     :class:`RunLoop`."""
     stages = build_stages(get_source(source), reader, config, recorder or NullRecorder())
-    return RunLoop(stages, on_progress, should_stop).run(reader.frames(stages.streams))
+    try:
+        return RunLoop(stages, on_progress, should_stop).run(reader.frames(stages.streams))
+    except BaseException:  # no estimate to finish the dense map of: stop its up-sampler
+        if stages.maps.dense is not None:
+            stages.maps.dense.close()
+        raise
 
 
 def evaluate_source(

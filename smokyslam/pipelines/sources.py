@@ -107,8 +107,8 @@ def build_stages(
             worker=config.slam.camera_process and not source.camera_only,
             keep_views=recorder.keeps_camera_views,
         )
+    dense = None
     try:
-        dense = None
         if radar is not None and config.upsample.method != "none":
             dense = DenseRefresher(config.upsample)  # loads the up-sampler in the background
         maps = OnlineMaps(
@@ -119,9 +119,11 @@ def build_stages(
             dense,
             MapFuser(config.fusion),
         )
-    except BaseException:  # the loop stops the camera's worker; without a loop, stop it here
+    except BaseException:  # the loop and the run stop the workers; without them, stop them here
         if camera is not None:
             camera.shutdown()
+        if dense is not None:
+            dense.close()
         raise
     return Stages(
         smoke=smoke,

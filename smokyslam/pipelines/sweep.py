@@ -8,8 +8,8 @@ or killed run is a row with its error); write ``sweep.csv``, ``summary.md`` and 
 Ctrl-C sets the sweep's stop flag (running runs keep what they computed, queued ones and
 simulations do not start), closes the cluster and writes the rows so far.
 
-A sweep's runs track the camera inline (``slam.camera_process`` off): a worker is a core, and
-the results do not depend on it.
+A sweep's runs track the camera and up-sample in their own process (``slam.camera_process`` and
+``upsample.worker_process`` off): a worker is a core, and the results do not depend on it.
 """
 
 from __future__ import annotations
@@ -64,7 +64,10 @@ def plan(spec: Sweep, out_dir: Path) -> list[SweepJob]:
     for world in spec.worlds:
         for name, config in spec.configs.items():
             inline = config.model_copy(
-                update={"slam": config.slam.model_copy(update={"camera_process": False})}
+                update={
+                    "slam": config.slam.model_copy(update={"camera_process": False}),
+                    "upsample": config.upsample.model_copy(update={"worker_process": False}),
+                }
             )
             for level in spec.levels:
                 for source in spec.sources:

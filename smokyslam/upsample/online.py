@@ -1,13 +1,17 @@
 """The dense radar map during a run: refreshed in the background from the online sparse map.
 
-Every ``refresh_period_s`` of log time the online maps hand the current sparse grid to one
-background thread, which up-samples it while the run goes on (a refresh still running when
-the next is due is not queued: the next keyframe after it finishes starts one). The
-up-sampler itself (torch and the weights) is loaded on that thread first, so the run does
-not wait for it either; a weights file that cannot be used stops the run at the next
-keyframe with the error. The run's final dense map is made from the final sparse map, drawn
-on the final poses, by :meth:`DenseRefresher.final`, in the background too: the run writes its
-other maps meanwhile.
+Every ``refresh_period_s`` of log time the online maps hand the current sparse grid to the
+up-sampler, which works on it while the run goes on (a refresh still running when the next is
+due is not queued: the next keyframe after it finishes starts one). The up-sampler (torch and
+the weights) is loaded in the background first, so the run does not wait for it either; a
+weights file that cannot be used stops the run at the next keyframe with the error. The run's
+final dense map is made from the final sparse map, drawn on the final poses, by
+:meth:`DenseRefresher.final`, in the background too: the run writes its other maps meanwhile.
+
+The up-sampler lives in a worker process of its own (``upsample.worker_process``), with
+lowered priority: loading torch takes 1.2-1.5 s of imports that hold Python's lock, and on a
+thread of the run's own process that lock held the run loop back. On a thread instead
+(``worker_process`` off: a sweep's runs, where a Dask worker is one core) it works the same.
 """
 
 from __future__ import annotations
@@ -17,7 +21,9 @@ import logging
 import os
 import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+import uuid
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +37,60 @@ BACKGROUND_THREADS = 1
 """torch threads while the run goes on beside it (the final pass uses torch's default)."""
 
 BACKGROUND_NICENESS = 10
-"""The up-sampling thread yields the cores to the run loop and the camera worker."""
+"""The up-sampler yields the cores to the run loop and the camera worker."""
+
+_LOADED: dict[str, tuple[Upsampler, int | None] | Exception] = {}
+"""The up-samplers loaded in this process, by refresher, each with torch's thread count from
+before the load (None: no torch); or why it could not be loaded."""
+
+
+def _start_worker(parent_pid: int) -> None:
+    from smokyslam.pipelines.worker_process import start_worker_process
+
+    start_worker_process(parent_pid)
+
+
+def _load(key: str, config: dict[str, Any]) -> None:
+    """Load the up-sampler ``config`` names (a plain dict: it may cross to a worker) under
+    ``key``, then leave torch one thread while the run goes on."""
+    with contextlib.suppress(OSError, AttributeError):  # Linux: a nicer thread
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), BACKGROUND_NICENESS)
+    try:
+        upsampler = get_upsampler(UpsampleConfig.model_validate(config))
+    except Exception as exc:  # each later job raises it too
+        _LOADED[key] = exc
+        raise
+    threads = None
+    if upsampler.method == "gan":
+        import torch
+
+        threads = torch.get_num_threads()
+        torch.set_num_threads(BACKGROUND_THREADS)
+    _LOADED[key] = (upsampler, threads)
+
+
+def _loaded(key: str) -> tuple[Upsampler, int | None]:
+    loaded = _LOADED[key]
+    if isinstance(loaded, Exception):
+        raise loaded
+    return loaded
+
+
+def _refresh(key: str, cells: np.ndarray, spec: GridSpec) -> tuple[DenseMap, float]:
+    """The dense map of ``cells`` by the up-sampler under ``key``, and its seconds."""
+    started = time.perf_counter()
+    dense = upsample(_loaded(key)[0], cells, spec)
+    return dense, time.perf_counter() - started
+
+
+def _final(key: str, cells: np.ndarray, spec: GridSpec) -> DenseMap:
+    """As :func:`_refresh`, with torch's own thread count (the run is over: every core)."""
+    upsampler, threads = _loaded(key)
+    if threads is not None:
+        import torch
+
+        torch.set_num_threads(threads)
+    return upsample(upsampler, cells, spec)
 
 
 class DenseRefresher:
@@ -40,26 +99,25 @@ class DenseRefresher:
 
     def __init__(self, config: UpsampleConfig) -> None:
         self.period_s = config.refresh_period_s
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="upsample")
-        self._torch_threads: int | None = None
-        self._loading: Future[Upsampler] = self._pool.submit(self._load, config)
-        self._job: Future[DenseMap] | None = None
+        self._key = uuid.uuid4().hex
+        self._pool: Executor
+        if config.worker_process:
+            from smokyslam.pipelines.worker_process import start_worker_pool
+
+            self._pool = start_worker_pool(
+                _start_worker, (os.getpid(),), niceness=BACKGROUND_NICENESS
+            )
+        else:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="upsample")
+        self._loading: Future[None] = self._pool.submit(
+            _load, self._key, config.model_dump(mode="json")
+        )
+        self._job: Future[tuple[DenseMap, float]] | None = None
         self._last_stamp_s: float | None = None
         self.latest: DenseMap | None = None
         self.latest_stamp_s: float | None = None
         self.refreshes = 0
         self.busy_s = 0.0
-
-    def _load(self, config: UpsampleConfig) -> Upsampler:
-        with contextlib.suppress(OSError, AttributeError):  # Linux: a nicer thread
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), BACKGROUND_NICENESS)
-        upsampler = get_upsampler(config)
-        if upsampler.method == "gan":
-            import torch
-
-            self._torch_threads = torch.get_num_threads()
-            torch.set_num_threads(BACKGROUND_THREADS)
-        return upsampler
 
     def due(self, stamp_s: float) -> bool:
         """Whether a refresh should start at log time ``stamp_s`` (none is running, and the
@@ -74,33 +132,21 @@ class DenseRefresher:
     def refresh(self, stamp_s: float, cells: np.ndarray, spec: GridSpec) -> None:
         """Up-sample ``cells`` over ``spec`` in the background."""
         self._last_stamp_s = stamp_s
-        self._job = self._pool.submit(self._run, stamp_s, cells, spec)
-
-    def _run(self, stamp_s: float, cells: np.ndarray, spec: GridSpec) -> DenseMap:
-        started = time.perf_counter()
-        dense = upsample(self._loading.result(), cells, spec)
-        self.busy_s += time.perf_counter() - started
-        self.latest_stamp_s = stamp_s
-        return dense
+        self._job = self._pool.submit(_refresh, self._key, cells, spec)
 
     def _collect(self) -> None:
-        if self._job is not None and self._job.done():
-            job, self._job = self._job, None
-            self.latest = job.result()
-            self.refreshes += 1
+        if self._job is None or not self._job.done():
+            return
+        job, self._job = self._job, None
+        self.latest, seconds = job.result()
+        self.latest_stamp_s = self._last_stamp_s
+        self.busy_s += seconds
+        self.refreshes += 1
 
     def final(self, cells: np.ndarray, spec: GridSpec) -> Future[DenseMap]:
         """The dense map of the final sparse map, made in the background (after the loading
         and any refresh still running) while the caller goes on: its future."""
-        return self._pool.submit(self._final, cells, spec)
-
-    def _final(self, cells: np.ndarray, spec: GridSpec) -> DenseMap:
-        upsampler = self._loading.result()  # done: the pool runs one job at a time
-        if self._torch_threads is not None:
-            import torch
-
-            torch.set_num_threads(self._torch_threads)  # the run is over: every core
-        return upsample(upsampler, cells, spec)
+        return self._pool.submit(_final, self._key, cells, spec)
 
     def stats(self) -> dict[str, float | int]:
         """``upsample`` in metrics.json: refreshes done and their mean seconds."""
@@ -109,4 +155,6 @@ class DenseRefresher:
         return {"refreshes": self.refreshes, "refresh_mean_s": mean_s}
 
     def close(self) -> None:
+        """Stop the up-sampler (a refresh still running is waited for)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
+        _LOADED.pop(self._key, None)
