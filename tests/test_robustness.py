@@ -524,3 +524,31 @@ def test_a_stage_that_fails_part_way_keeps_what_came_before_it(
     assert 10 <= metrics["trajectory"]["frames"] < frames  # measured 18 of 31, 25 of 46
     assert len(np.loadtxt(out_dir / "trajectory.tum")) == metrics["trajectory"]["frames"]
     assert (out_dir / "trajectory.png").is_file()
+
+
+@pytest.mark.parametrize("worker_process", ["true", "false"])
+def test_unusable_weights_cost_only_the_dense_map(
+    tiny_logs, tmp_path, monkeypatch, capsys, worker_process
+):
+    # A weights file that is not one (random bytes): the run writes everything else (a fused
+    # map would take the sparse radar map), then says why there is no dense map in one line.
+    from smokyslam.cli import main as cli_main
+
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(np.random.default_rng(0).bytes(100))
+    config = tmp_path / "junk.yaml"
+    config.write_text(f"upsample:\n  weights: {junk}\n  worker_process: {worker_process}\n")
+    out_dir = tmp_path / "run"
+    argv = ["smokyslam", "run", str(tiny_logs[".mcap"]), "--odometry", "fused", "-c", str(config)]
+    monkeypatch.setattr(sys, "argv", [*argv, "--out", str(out_dir)])
+    with pytest.raises(SystemExit) as exited:
+        cli_main()
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert exited.value.code == 1
+    assert len(lines) == 1 and "junk.pt: not a readable weights file" in lines[0]
+    metrics = json.loads((out_dir / "metrics.json").read_text())
+    assert "junk.pt" in metrics["failed"]
+    assert "radar_sparse" in metrics["maps"] and "radar_dense" not in metrics["maps"]
+    assert not (out_dir / "maps" / "radar_dense.yaml").exists()
+    for name in ("maps/radar_sparse.yaml", "trajectory.tum", "trajectory.png", "health.png"):
+        assert (out_dir / name).is_file(), name

@@ -22,12 +22,14 @@ the same poses and keyframes gives.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from smokyslam.config import MappingConfig
+from smokyslam.errors import UpsamplerError
 from smokyslam.fusion.trust import trust_grid
 from smokyslam.geometry import GridSpec, se2_between, se2_compose
 from smokyslam.mapping.grid import OccupancyGrid
@@ -40,6 +42,8 @@ if TYPE_CHECKING:
     from smokyslam.fusion.fuser import MapFuser
     from smokyslam.upsample.infer import DenseMap
     from smokyslam.upsample.online import DenseRefresher
+
+logger = logging.getLogger(__name__)
 
 IDENTITY = np.zeros(3)
 
@@ -213,8 +217,12 @@ class OnlineMaps:
             grids["visual"] = self._visual_grid(target)
             yield "visual", grids["visual"]
         if dense is not None:
-            grids["radar_dense"] = dense.result()
-            yield "radar_dense", grids["radar_dense"]
+            try:
+                grids["radar_dense"] = dense.result()
+            except UpsamplerError:  # the up-sampler could not be loaded (its ``failure``)
+                logger.info("no dense map: the up-sampler could not be loaded")
+            else:
+                yield "radar_dense", grids["radar_dense"]
         self._add_fused(grids, target)
         if "fused" in grids:
             yield "fused", grids["fused"]

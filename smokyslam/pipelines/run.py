@@ -181,6 +181,9 @@ def run_reader(
             write_maps(out, source, estimate, evaluation, gt_map, observed, spec.camera_only)
             if (dense := estimate.maps.dense) is not None:
                 out.update_metrics({"upsample": dense.stats()})
+                if estimate.failure is None and dense.failure is not None:
+                    estimate.failure = f"no dense map: {dense.failure}"
+                    out.update_metrics({"failed": estimate.failure})
             record_results(recorder, estimate, evaluation)
             if problems := reader.problems():
                 out.update_metrics({"log": problems})

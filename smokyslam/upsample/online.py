@@ -134,10 +134,19 @@ class DenseRefresher:
         self._last_stamp_s = stamp_s
         self._job = self._pool.submit(_refresh, self._key, cells, spec)
 
+    @property
+    def failure(self) -> str | None:
+        """Why the up-sampler could not be loaded (None: it was, or it is still loading)."""
+        if self._loading.done() and (error := self._loading.exception()) is not None:
+            return str(error)
+        return None
+
     def _collect(self) -> None:
         if self._job is None or not self._job.done():
             return
         job, self._job = self._job, None
+        if job.exception() is not None and self.failure is not None:
+            return  # the refresh failed for want of an up-sampler: the loading error tells
         self.latest, seconds = job.result()
         self.latest_stamp_s = self._last_stamp_s
         self.busy_s += seconds
