@@ -290,7 +290,13 @@ def test_ctrl_c_keeps_what_the_run_computed(office_log, tmp_path):
             delay_s /= 2
             continue
         assert process.returncode == 130, stderr
-        lines = stderr.strip().splitlines()
+        # A Ctrl-C before the camera's first metric keyframe leaves the visual map empty: a
+        # valid result, logged as such (the folder's metrics name it in ``empty_maps``).
+        lines = [
+            line
+            for line in stderr.strip().splitlines()
+            if not (line.startswith("WARNING smokyslam.outputs: map ") and "is empty" in line)
+        ]
         assert len(lines) == 1 and lines[0].startswith("interrupted") and str(out_dir) in lines[0]
         metrics = json.loads((out_dir / "metrics.json").read_text())
         assert metrics["interrupted"] is True
