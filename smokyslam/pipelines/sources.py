@@ -97,7 +97,7 @@ def build_stages(
     )
     visual_map = use_camera and (source.camera_only or config.slam.visual_map)
     camera = None
-    if use_camera:  # before the up-sampler's thread loads torch, which slows a worker's start
+    if use_camera:  # before the up-sampler starts loading torch, which slows a worker's start
         camera = CameraStage(
             intrinsics,
             config.camera_odometry,
