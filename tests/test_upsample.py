@@ -12,7 +12,7 @@ from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
 from smokyslam.sim.world import box_world
 from smokyslam.upsample.crops import CropSampler
 from smokyslam.upsample.dataset import MapPair
-from smokyslam.upsample.infer import ClassicalUpsampler, GanUpsampler, get_upsampler
+from smokyslam.upsample.infer import ClassicalUpsampler, GanUpsampler, get_upsampler, upsample
 from smokyslam.upsample.weights import load_weights, save_weights
 
 torch = pytest.importorskip("torch")
@@ -148,6 +148,33 @@ def test_a_map_and_a_shifted_copy_up_sample_alike(tmp_path, half_turn):
         assert np.abs(crop - base).max() < 1e-4
 
 
+def test_the_dense_map_covers_the_known_cells_and_its_extension_wherever_the_window_ends(
+    tmp_path,
+):
+    """The dense grid is the known cells' box grown by ``extend_cells``: the same for a sparse
+    window with much unknown slack and for one cut off at the known cells, and its values
+    beyond the window's edge are the network's, as in a wider window."""
+    upsampler = GanUpsampler(_weights(tmp_path), 24, 1024, 1.0, extend_cells=10)
+    sparse, _ = _sparse_room()
+    rows, cols = np.nonzero(sparse != UNKNOWN)
+    tight = sparse[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    tight_spec = GridSpec((0.3, -0.2), 0.1, tight.shape)
+    slack = np.pad(tight, ((4, 30), (25, 2)), constant_values=UNKNOWN)
+    slack_spec = GridSpec((0.3 - 2.5, -0.2 - 0.4), 0.1, slack.shape)
+    dense_tight = upsample(upsampler, tight, tight_spec)
+    dense_slack = upsample(upsampler, slack, slack_spec)
+    assert dense_tight.values.shape == (tight.shape[0] + 20, tight.shape[1] + 20)
+    assert dense_tight.values.shape == dense_slack.values.shape
+    assert dense_tight.spec.origin_xy_m == pytest.approx((0.3 - 1.0, -0.2 - 1.0))
+    assert dense_slack.spec.origin_xy_m == pytest.approx((0.3 - 1.0, -0.2 - 1.0))
+    np.testing.assert_allclose(dense_tight.values, dense_slack.values, atol=1e-4)
+    wide = np.pad(tight, 10, constant_values=UNKNOWN)
+    np.testing.assert_allclose(dense_tight.values, upsampler.values(wide, dense_tight.spec))
+    # Without the extension the dense map keeps the sparse grid, slack and all.
+    upsampler.extend_cells = None
+    assert upsample(upsampler, slack, slack_spec).spec == slack_spec
+
+
 @pytest.mark.parametrize("half_turn", [False, True])
 def test_with_the_half_turn_a_turned_map_up_samples_to_the_turned_result(tmp_path, half_turn):
     """Averaged with its half turn, the dense map of a map turned by 180 degrees about the
@@ -253,7 +280,7 @@ def test_the_refresher_up_samples_in_the_background_at_its_period(worker_process
             assert not refresher.due(1.0) or refresher.latest is not None
             time.sleep(0.05)
         assert refresher.refreshes == 1 and refresher.latest_stamp_s == 0.0
-        expected = get_upsampler(config).values(sparse, spec)
+        expected = upsample(get_upsampler(config), sparse, spec).values
         np.testing.assert_array_equal(refresher.latest.values, expected)
         assert not refresher.due(4.9) and refresher.due(5.0)
         np.testing.assert_array_equal(refresher.final(sparse, spec).result().values, expected)

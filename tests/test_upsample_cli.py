@@ -76,9 +76,12 @@ def test_upsample_command_gan_beats_classical(mapped, unseen_log, tmp_path):
         assert "radar_dense.yaml" in out.stdout
         metrics = json.loads((out_dir / "metrics.json").read_text())
         assert metrics["upsample"]["method"] == method
-        assert load_map(out_dir / "maps/radar_dense.yaml").cells.shape == (
-            load_map(sparse_yaml).cells.shape
-        )
+        # The dense grid: the sparse map's known cells and 48 cells (extend_cells) around.
+        sparse_map, dense_map = load_map(sparse_yaml), load_map(out_dir / "maps/radar_dense.yaml")
+        rows, cols = np.nonzero(sparse_map.cells != UNKNOWN)
+        corner = sparse_map.spec.centres_of(np.array([[cols.min() - 48, rows.min() - 48]]))[0]
+        np.testing.assert_allclose(dense_map.spec.centres_of(np.array([[0, 0]]))[0], corner)
+        assert dense_map.cells.shape == (np.ptp(rows) + 97, np.ptp(cols) + 97)
         scores[method] = metrics["maps"]["radar_dense"]["observed"]
         sparse = metrics["maps"]["radar_sparse"]["observed"]
     assert scores["classical"]["error_index"] < sparse["error_index"]

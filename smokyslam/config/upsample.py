@@ -60,6 +60,13 @@ class UpsampleConfig(_Section):
     margin_cells: int = Field(
         48, ge=0, description="unknown border added around a map before the network's pass"
     )
+    extend_cells: int | None = Field(
+        48,
+        ge=0,
+        description="the dense map's grid: the sparse map's known cells and this many cells"
+        " around them (the network's values just beyond what the radar saw), wherever the"
+        " sparse grid's window happens to end; null: the sparse map's own grid",
+    )
     max_pass_cells: int = Field(
         1536, ge=128, description="maps larger than this per side go in overlapping tiles"
     )

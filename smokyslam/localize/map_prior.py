@@ -28,7 +28,8 @@ from scipy.ndimage import convolve
 
 from smokyslam.config import SmokySlamConfig
 from smokyslam.geometry import GridSpec
-from smokyslam.mapio import OCCUPIED, with_implicit_walls
+from smokyslam.mapio import OCCUPIED, UNKNOWN, with_implicit_walls
+from smokyslam.mapping.grid import resample_nearest
 
 
 @dataclass(frozen=True)
@@ -73,4 +74,5 @@ def localization_map(
     from smokyslam.upsample.infer import get_upsampler, upsample  # torch: only when used
 
     dense = upsample(get_upsampler(config.upsample, "gan"), cells, spec)
-    return LocalizationMap(dense.cells, True, share, walls)
+    cells = resample_nearest(dense.cells, dense.spec, spec, UNKNOWN)
+    return LocalizationMap(cells, True, share, walls)

@@ -150,9 +150,10 @@ def _register_and_fuse(
     fuser: MapFuser,
 ) -> tuple[MapImage, MapImage, float]:
     """(the visual map placed on the radar maps' grid, its fusion with the dense map, the mean
-    trust used). ``targets``: the fused run's sparse and dense radar maps (one grid) and its
-    own visual map (None when it has none). The camera-only visual map is registered onto
-    each, and the most confident placement is kept; FusionError when none is confident.
+    trust used). ``targets``: the fused run's sparse and dense radar maps and its own visual
+    map (None when it has none), each taken onto the dense map's grid. The camera-only
+    visual map is registered onto each, and the most confident placement is kept;
+    FusionError when none is confident.
 
     The fused run's visual map is the same camera's landmarks placed on the fused run's
     metric poses, in the radar maps' frame: far more alike to the camera-only map than radar
@@ -161,7 +162,7 @@ def _register_and_fuse(
     visual = load_map(visual_yaml)
     trust, t_run = load_trust(trust_beside(visual_yaml), visual.cells.shape)
     scale = visual.spec.resolution_m / dense.spec.resolution_m
-    destinations = [sparse.cells, dense.cells]
+    destinations = [resample_nearest(sparse.cells, sparse.spec, dense.spec, UNKNOWN), dense.cells]
     if own_visual is not None:
         destinations.append(
             resample_nearest(own_visual.cells, own_visual.spec, dense.spec, UNKNOWN)

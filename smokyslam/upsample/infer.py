@@ -63,13 +63,44 @@ class DenseMap:
 
 class Upsampler(Protocol):
     method: str
+    extend_cells: int | None
 
     def values(self, cells: np.ndarray, spec: GridSpec) -> np.ndarray: ...
 
 
 def upsample(upsampler: Upsampler, cells: np.ndarray, spec: GridSpec) -> DenseMap:
-    """The dense map of trinary ``cells`` over ``spec``."""
+    """The dense map of trinary ``cells`` over ``spec``: on the grid of the known cells grown
+    by the up-sampler's ``extend_cells`` (:func:`known_window`), or on ``spec`` itself when
+    that is None or nothing is known."""
+    cells = np.asarray(cells)
+    if upsampler.extend_cells is not None and (cells != UNKNOWN).any():
+        cells, spec = known_window(cells, spec, upsampler.extend_cells)
     return DenseMap(upsampler.values(cells, spec), spec, upsampler.method)
+
+
+def known_window(
+    cells: np.ndarray, spec: GridSpec, extend_cells: int
+) -> tuple[np.ndarray, GridSpec]:
+    """The bounding box of the known ``cells`` grown by ``extend_cells`` on every side, cut
+    from ``cells`` (cropped, or padded with unknown cells) with its grid.
+
+    A sparse grid's window grows by whole chunks, so its edge may lie far from what the radar
+    saw or right at it; the dense map's extent follows the known cells instead. Measured on
+    maps on true poses against the observed truth: where the window ended at the known cells
+    (warehouses 10008, 10045, 10046), the network's values beyond them lowered the error index
+    0.559 -> 0.508, 0.598 -> 0.567 and 0.567 -> 0.547 x the sparse map's; elsewhere it stayed
+    within 0.005, and the network's pass shrank where the window held much unknown slack."""
+    rows, cols = np.nonzero(np.asarray(cells) != UNKNOWN)
+    first = np.array([rows.min(), cols.min()]) - extend_cells
+    shape = np.array([rows.max(), cols.max()]) + 1 + extend_cells - first
+    window = np.full(tuple(shape), UNKNOWN, dtype=np.int8)
+    lo = np.maximum(first, 0)
+    hi = np.minimum(first + shape, cells.shape)
+    window[lo[0] - first[0] : hi[0] - first[0], lo[1] - first[1] : hi[1] - first[1]] = cells[
+        lo[0] : hi[0], lo[1] : hi[1]
+    ]
+    origin = np.asarray(spec.origin_xy_m) + first[::-1] * spec.resolution_m
+    return window, GridSpec((float(origin[0]), float(origin[1])), spec.resolution_m, window.shape)
 
 
 class GanUpsampler:
@@ -85,15 +116,18 @@ class GanUpsampler:
         keep_walls_above: float,
         half_turn: bool = False,
         channels_last: bool = False,
+        extend_cells: int | None = None,
     ):
         """``keep_walls_above``: a cell the radar map holds occupied stays occupied unless the
         network's probability there is below this (1 turns it off: the network alone).
         ``half_turn``: also pass the map turned by 180 degrees and average the two.
         ``channels_last``: run the network in that memory layout (the same values to float
         rounding, about twice as fast on CPU; it converts ``weights.generator`` in place, so
-        only inference asks for it: training's validation leaves its generator as it is)."""
+        only inference asks for it: training's validation leaves its generator as it is).
+        ``extend_cells``: the dense map's grid (see :func:`upsample`)."""
         import torch
 
+        self.extend_cells = extend_cells
         self.weights = weights
         self.keep_walls_above = keep_walls_above
         self.half_turn = half_turn
@@ -177,7 +211,13 @@ class ClassicalUpsampler:
 
     method = "classical"
 
-    def __init__(self, closing_radius_cells: int, free_fill_radius_cells: int) -> None:
+    def __init__(
+        self,
+        closing_radius_cells: int,
+        free_fill_radius_cells: int,
+        extend_cells: int | None = None,
+    ) -> None:
+        self.extend_cells = extend_cells
         self.wall_disc = _disc(closing_radius_cells)
         self.free_disc = _disc(free_fill_radius_cells)
         self.pad = max(closing_radius_cells, free_fill_radius_cells) + 1
@@ -211,7 +251,10 @@ def get_upsampler(config: UpsampleConfig, method: str | None = None) -> Upsample
             config.keep_walls_above,
             half_turn=config.half_turn,
             channels_last=True,
+            extend_cells=config.extend_cells,
         )
     if method == "classical":
-        return ClassicalUpsampler(config.closing_radius_cells, config.free_fill_radius_cells)
+        return ClassicalUpsampler(
+            config.closing_radius_cells, config.free_fill_radius_cells, config.extend_cells
+        )
     raise UpsamplerError(f"unknown up-sampling method '{method}' (choose {', '.join(METHODS)})")
