@@ -85,7 +85,8 @@ def run_benchmarks(
 
 def upsample_seconds(map_yaml: Path, config: SmokySlamConfig, side: int = 512) -> float:
     """Best of three: the shipped GAN on a ``side`` x ``side`` map (the run's sparse map,
-    cropped or padded with unknown cells to that size), the whole pass included."""
+    cropped or padded with unknown cells to that size), the whole pass included. The dense
+    map keeps that grid (``extend_cells`` off), so the pass covers all of it."""
     from smokyslam.geometry import GridSpec
     from smokyslam.mapio import UNKNOWN, load_map
     from smokyslam.upsample.infer import get_upsampler, upsample
@@ -95,7 +96,7 @@ def upsample_seconds(map_yaml: Path, config: SmokySlamConfig, side: int = 512) -
     rows, cols = min(side, sparse.cells.shape[0]), min(side, sparse.cells.shape[1])
     cells[:rows, :cols] = sparse.cells[:rows, :cols]
     spec = GridSpec(sparse.spec.origin_xy_m, sparse.spec.resolution_m, (side, side))
-    upsampler = get_upsampler(config.upsample, "gan")
+    upsampler = get_upsampler(config.upsample.model_copy(update={"extend_cells": None}), "gan")
     upsample(upsampler, cells, spec)  # warm up
     times = []
     for _ in range(3):
