@@ -34,6 +34,7 @@ from smokyslam.config.upsample import UpsampleConfig
 from smokyslam.errors import UpsamplerError
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import FREE, OCCUPIED, UNKNOWN
+from smokyslam.mapping.grid import resample_nearest
 from smokyslam.upsample.encoding import cells_from_values, encode_cells
 from smokyslam.upsample.weights import UpsamplerWeights, load_weights
 
@@ -91,16 +92,11 @@ def known_window(
     0.559 -> 0.508, 0.598 -> 0.567 and 0.567 -> 0.547 x the sparse map's; elsewhere it stayed
     within 0.005, and the network's pass shrank where the window held much unknown slack."""
     rows, cols = np.nonzero(np.asarray(cells) != UNKNOWN)
-    first = np.array([rows.min(), cols.min()]) - extend_cells
-    shape = np.array([rows.max(), cols.max()]) + 1 + extend_cells - first
-    window = np.full(tuple(shape), UNKNOWN, dtype=np.int8)
-    lo = np.maximum(first, 0)
-    hi = np.minimum(first + shape, cells.shape)
-    window[lo[0] - first[0] : hi[0] - first[0], lo[1] - first[1] : hi[1] - first[1]] = cells[
-        lo[0] : hi[0], lo[1] : hi[1]
-    ]
-    origin = np.asarray(spec.origin_xy_m) + first[::-1] * spec.resolution_m
-    return window, GridSpec((float(origin[0]), float(origin[1])), spec.resolution_m, window.shape)
+    first_ixy = np.array([cols.min(), rows.min()]) - extend_cells
+    shape = (int(np.ptp(rows)) + 1 + 2 * extend_cells, int(np.ptp(cols)) + 1 + 2 * extend_cells)
+    origin = np.asarray(spec.origin_xy_m) + first_ixy * spec.resolution_m
+    window = GridSpec((float(origin[0]), float(origin[1])), spec.resolution_m, shape)
+    return resample_nearest(np.asarray(cells), spec, window, UNKNOWN), window
 
 
 class GanUpsampler:
