@@ -208,6 +208,39 @@ def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
     assert far == pytest.approx(np.log(0.3)) and on == pytest.approx(score["on"])
 
 
+def test_while_tracking_the_edge_of_free_space_scores_like_the_unknown_space_beyond_it():
+    """A room's far wall the map never marked: free up to y = 2.0 m, unknown beyond. While
+    tracking (unknown space above the search's ``p_unknown``), a point on that edge scores
+    nearly as a point in unknown space, fading with its distance to it as a Gaussian of
+    ``hit_sigma_m``, instead of as open free space. A search scores it as open free space;
+    points deep in free space and on walls score as before in both."""
+    cells = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    cells[:20, 1:] = FREE
+    cells[:20, 0] = OCCUPIED  # a wall along x = 0-0.1 m; none marked at the room's far side
+    settings = LocalizeConfig(ray_check_m=[])
+    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), settings)
+    at_origin = np.zeros((1, 3))
+    points = {"edge": [3.05, 1.95], "inside": [3.05, 0.55], "unknown": [3.05, 2.55]}
+    points["wall"] = [0.05, 1.0]
+    tracking, search = settings.p_unknown_tracking, settings.p_unknown
+
+    def score(name: str, p_unknown: float) -> float:
+        return float(field.log_likelihood(at_origin, np.array([points[name]]), p_unknown)[0])
+
+    open_space = np.log(settings.z_rand / settings.max_range_m)
+    # The edge cell's centre lies one cell (0.1 m) from unknown space.
+    faded = np.log(tracking * np.exp(-0.5 * (0.1 / settings.hit_sigma_m) ** 2))
+    assert score("edge", tracking) == pytest.approx(faded, abs=1e-4)
+    assert score("edge", tracking) > open_space + 2.5
+    assert score("unknown", tracking) == pytest.approx(np.log(tracking), abs=1e-4)
+    assert score("edge", search) == pytest.approx(open_space, abs=1e-4)
+    assert score("unknown", search) == pytest.approx(np.log(search), abs=1e-4)
+    for name in ("inside", "wall"):
+        assert score(name, tracking) == pytest.approx(score(name, search))
+    assert score("inside", tracking) == pytest.approx(open_space, abs=1e-3)
+    assert score("wall", tracking) > np.log(tracking) + 1.0
+
+
 def test_a_point_whose_ray_went_through_a_wall_scores_less():
     """A return is the first surface on its ray. A point beyond a wall, whose ray crosses it
     at one of the places ``ray_check_m`` before the point, loses a factor ``ray_blocked``;

@@ -57,7 +57,9 @@ class LocalizeConfig(_Section):
         0.3,
         gt=0.0,
         description="the same while tracking from a given start (a search keeps p_unknown):"
-        " near a trusted pose, a point in unknown space most likely hit something unmapped",
+        " near a trusted pose, a point in unknown space most likely hit something unmapped;"
+        " free cells at unknown space's edge get it too, faded by their distance to it"
+        " (a Gaussian of hit_sigma_m)",
     )
     ray_check_m: list[float] = Field(
         [0.2, 0.4],
