@@ -17,6 +17,7 @@ import numpy as np
 
 from smokyslam.config import LocalizeConfig
 from smokyslam.geometry import wrap_angle
+from smokyslam.localize.hypotheses import resample_keeping
 from smokyslam.localize.likelihood import LikelihoodField
 from smokyslam.localize.particles import ParticleSet, smoothed, weighted_mean
 from smokyslam.localize.sampling import where_the_scan_fits
@@ -182,6 +183,13 @@ class MonteCarloLocalizer:
         # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
+        if self._tracking and inject == 0.0:  # keep the places the first scans disfavour
+            self.set.reset(
+                *resample_keeping(
+                    self.particles, self.weights, n, self._rng, MODE_RADIUS_M, MODE_RADIUS_RAD
+                )
+            )
+            return
         particles = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < inject
         if fresh.any():

@@ -1,0 +1,69 @@
+"""Resampling that keeps the filter's hypotheses while it tracks from a given start.
+
+Low-variance resampling draws particles in proportion to their weights. A place the first
+scans disfavour (by a factor of e^10 to e^30 over a few seconds, when a stretch of wall in
+front of the true start is missing from the map) then loses every particle, and no later
+scan can bring it back: the filter has forgotten it. The true place often wins later, once
+the walk sees what tells the two apart.
+
+So while tracking, the particles are split into hypotheses (the heaviest particle and every
+particle within ``radius_m`` and ``radius_rad`` of it, then the heaviest of the rest, ...,
+at most :data:`MAX_HYPOTHESES`), and each hypothesis is resampled on its own: to its share of
+the particles, but to at least :data:`KEEP_PARTICLES` each weighted down so that the
+hypothesis keeps its total weight. The cloud's posterior is unchanged (an importance sample of
+the same mass per hypothesis); a hypothesis is dropped only once its weight falls below
+:data:`KEEP_SHARE` of the whole.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smokyslam.geometry import wrap_angle
+from smokyslam.localize.sampling import low_variance
+
+MAX_HYPOTHESES = 8
+KEEP_PARTICLES = 20
+KEEP_SHARE = float(np.exp(-40.0))
+
+
+def split(
+    poses: np.ndarray, weights: np.ndarray, radius_m: float, radius_rad: float
+) -> list[np.ndarray]:
+    """Index arrays of at most :data:`MAX_HYPOTHESES` groups of (P, 3) ``poses``, heaviest
+    seed first; particles left over once that many are formed belong to none."""
+    remaining = np.ones(len(poses), dtype=bool)
+    groups: list[np.ndarray] = []
+    while remaining.any() and len(groups) < MAX_HYPOTHESES:
+        index = np.flatnonzero(remaining)
+        seed = poses[index[np.argmax(weights[index])]]
+        d = poses[index] - seed
+        near = (np.hypot(d[:, 0], d[:, 1]) < radius_m) & (np.abs(wrap_angle(d[:, 2])) < radius_rad)
+        groups.append(index[near])
+        remaining[index[near]] = False
+    return groups
+
+
+def resample_keeping(
+    poses: np.ndarray,
+    weights: np.ndarray,
+    n: int,
+    rng: np.random.Generator,
+    radius_m: float,
+    radius_rad: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """((M, 3) poses, (M,) weights): about ``n`` particles drawn by low-variance resampling
+    within each hypothesis, each hypothesis keeping its total weight and at least
+    :data:`KEEP_PARTICLES` particles (so M may exceed ``n`` by a few hundred)."""
+    groups = split(poses, weights, radius_m, radius_rad)
+    mass = np.array([weights[g].sum() for g in groups])
+    total = float(mass.sum())
+    drawn, drawn_weights = [], []
+    for group, group_mass in zip(groups, mass, strict=True):
+        if group_mass < KEEP_SHARE * total:
+            continue
+        m = max(KEEP_PARTICLES, int(np.rint(n * group_mass / total)))
+        picks = group[low_variance(weights[group] / group_mass, m, rng)]
+        drawn.append(poses[picks])
+        drawn_weights.append(np.full(m, group_mass / m))
+    return np.vstack(drawn), np.concatenate(drawn_weights)
