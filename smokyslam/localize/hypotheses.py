@@ -54,7 +54,8 @@ def resample_keeping(
 ) -> tuple[np.ndarray, np.ndarray]:
     """((M, 3) poses, (M,) weights): about ``n`` particles drawn by low-variance resampling
     within each hypothesis, each hypothesis keeping its total weight and at least
-    :data:`KEEP_PARTICLES` particles (so M may exceed ``n`` by a few hundred)."""
+    :data:`KEEP_PARTICLES` particles (so M may exceed ``n`` by that many per hypothesis
+    beyond the first)."""
     groups = split(poses, weights, radius_m, radius_rad)
     mass = np.array([weights[g].sum() for g in groups])
     total = float(mass.sum())
