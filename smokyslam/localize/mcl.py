@@ -184,11 +184,7 @@ class MonteCarloLocalizer:
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
         if self._tracking and inject == 0.0:  # keep the places the first scans disfavour
-            self.set.reset(
-                *resample_keeping(
-                    self.particles, self.weights, n, self._rng, MODE_RADIUS_M, MODE_RADIUS_RAD
-                )
-            )
+            self.set.reset(*resample_keeping(self.particles, self.weights, n, self._rng))
             return
         particles = self.set.draw(n, self._rng)
         fresh = self._rng.uniform(size=n) < inject
