@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from smokyslam.geometry import wrap_angle
+from smokyslam.localize.particles import near
 from smokyslam.localize.sampling import low_variance
 
 MAX_HYPOTHESES = 8
@@ -49,10 +49,9 @@ def split(
     while remaining.any() and len(groups) < MAX_HYPOTHESES:
         index = np.flatnonzero(remaining)
         seed = poses[index[np.argmax(weights[index])]]
-        d = poses[index] - seed
-        near = (np.hypot(d[:, 0], d[:, 1]) < radius_m) & (np.abs(wrap_angle(d[:, 2])) < radius_rad)
-        groups.append(index[near])
-        remaining[index[near]] = False
+        group = index[near(poses[index], seed, radius_m, radius_rad)]
+        groups.append(group)
+        remaining[group] = False
     if remaining.any():
         groups.append(np.flatnonzero(remaining))
     return groups

@@ -71,11 +71,7 @@ class LikelihoodField:
         p_hit = np.exp(-0.5 * (distance_m / sigma_m) ** 2) / (np.sqrt(2 * np.pi) * sigma_m)
         self._likelihood = z_hit * p_hit + z_rand / max_range_m
         self._unknown = cells == UNKNOWN
-        to_unknown_m = distance_transform_edt(~self._unknown) * spec.resolution_m
-        self._unknown_edge = np.exp(-0.5 * (to_unknown_m / sigma_m) ** 2)
-        """1 in unknown space, fading with the distance to it (none in a map without)."""
-        if not self._unknown.any():
-            self._unknown_edge[:] = 0.0
+        self._hit_sigma_m = sigma_m
         self._occupied_flat = np.pad(occupied, 1).astype(np.int8).ravel()
         self._ray_check_m = np.asarray(config.ray_check_m, dtype=float)
         self._log_blocked = float(np.log(config.ray_blocked))
@@ -103,13 +99,21 @@ class LikelihoodField:
         faded by their distance to them (one table per value, made once)."""
         if p_unknown not in self._tables:
             if p_unknown > self.p_unknown:
-                floor = p_unknown * self._unknown_edge
+                floor = p_unknown * self._unknown_edge()
             else:
                 floor = np.where(self._unknown, p_unknown, 0.0)
             likelihood = np.maximum(self._likelihood, floor)
             padded = np.pad(likelihood, 1, constant_values=p_unknown)
             self._tables[p_unknown] = np.log(padded).astype(np.float32).ravel()
         return self._tables[p_unknown]
+
+    def _unknown_edge(self) -> np.ndarray:
+        """1 in unknown space, fading as a Gaussian of ``hit_sigma_m`` with the distance to it
+        (0 everywhere in a map without unknown space); made for a tracking table only."""
+        if not self._unknown.any():
+            return np.zeros(self._unknown.shape)
+        to_unknown_m = distance_transform_edt(~self._unknown) * self.spec.resolution_m
+        return np.exp(-0.5 * (to_unknown_m / self._hit_sigma_m) ** 2)
 
     def log_likelihood(
         self, particles: np.ndarray, points_xy: np.ndarray, p_unknown: float | None = None

@@ -19,7 +19,7 @@ from smokyslam.config import LocalizeConfig
 from smokyslam.geometry import wrap_angle
 from smokyslam.localize.hypotheses import resample_keeping
 from smokyslam.localize.likelihood import LikelihoodField
-from smokyslam.localize.particles import ParticleSet, smoothed, weighted_mean
+from smokyslam.localize.particles import ParticleSet, near, smoothed, weighted_mean
 from smokyslam.localize.sampling import where_the_scan_fits
 from smokyslam.localize.scouts import Scouts
 
@@ -183,7 +183,7 @@ class MonteCarloLocalizer:
         # While the likelihood has collapsed (any injection, INJECT_FLOOR and up), search with
         # every particle there may be.
         n = self.settings.max_particles if inject > 0.0 else self._kld_count()
-        if self._tracking and inject == 0.0:  # keep the places the first scans disfavour
+        if self._tracking:  # (an injection has ended it) keep places the first scans disfavour
             self.set.reset(*resample_keeping(self.particles, self.weights, n, self._rng))
             return
         particles = self.set.draw(n, self._rng)
@@ -236,12 +236,10 @@ class MonteCarloLocalizer:
 
     def _find_main_mode(self) -> tuple[np.ndarray, np.ndarray]:
         seed = weighted_mean(*self._heaviest_bin())
-        d = self.particles - seed
-        d[:, 2] = wrap_angle(d[:, 2])
-        near = (np.hypot(d[:, 0], d[:, 1]) < MODE_RADIUS_M) & (np.abs(d[:, 2]) < MODE_RADIUS_RAD)
-        if not near.any():
+        mode = near(self.particles, seed, MODE_RADIUS_M, MODE_RADIUS_RAD)
+        if not mode.any():
             return seed, np.ones(len(self.particles), dtype=bool)
-        return self.set.mean(near), near
+        return self.set.mean(mode), mode
 
     def _heaviest_bin(self) -> tuple[np.ndarray, np.ndarray]:
         """The particles and weights of the KLD bin holding the most weight."""

@@ -91,6 +91,13 @@ def weighted_mean(poses: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return np.array([xy[0], xy[1], yaw])
 
 
+def near(poses: np.ndarray, centre: np.ndarray, radius_m: float, radius_rad: float) -> np.ndarray:
+    """(P,) bool: which of the (P, 3) ``poses`` lie within ``radius_m`` and ``radius_rad``
+    (heading, wrapped) of the (3,) ``centre``."""
+    d = poses - centre
+    return (np.hypot(d[:, 0], d[:, 1]) < radius_m) & (np.abs(wrap_angle(d[:, 2])) < radius_rad)
+
+
 def smoothed(average: float, value: float, rate: float) -> float:
     """An exponential moving average moved towards ``value`` at ``rate``; it starts at the
     first value (an average of 0 is one not started)."""
