@@ -208,6 +208,40 @@ def test_a_radar_map_s_thin_wall_scores_alike_on_its_seen_and_unseen_side():
     assert far == pytest.approx(np.log(0.3)) and on == pytest.approx(score["on"])
 
 
+def test_while_tracking_a_wall_parted_from_free_space_by_unknown_cells_scores_as_a_wall():
+    """Up-sampled and fused maps often leave a cell of unknown space between a room's free
+    space and its wall, and a wall drawn twice (a SLAM run passing twice) is two or three
+    cells thick. While tracking, a radar return on such a wall scores as a hit. (Counting
+    only occupied cells that border free space as surfaces, a run-made map of warehouse
+    20025 favoured the neighbouring aisle, 4 m away, for 10 s.) A solid block's inside is
+    still no surface. A search keeps to the walls that border free space, where a wrong
+    place gains less from the map's outer walls."""
+    cells = np.full((60, 40), UNKNOWN, dtype=np.int8)
+    cells[:18] = FREE
+    cells[19:22] = OCCUPIED  # a thick wall along y = 1.9-2.2 m, unknown on both sides
+    cells[39:52, 9:22] = FREE
+    cells[40:51, 10:21] = OCCUPIED  # a solid block, x 1.0-2.1 m, y 4.0-5.1 m, in free space
+    settings = LocalizeConfig(ray_check_m=[])
+    field = LikelihoodField(cells, GridSpec((0.0, 0.0), 0.1, cells.shape), settings)
+    at_origin = np.zeros((1, 3))
+    tracking, search = settings.p_unknown_tracking, settings.p_unknown
+
+    def score(x: float, y: float, p_unknown: float) -> float:
+        return float(field.log_likelihood(at_origin, np.array([[x, y]]), p_unknown)[0])
+
+    on_a_wall = np.log(
+        settings.z_hit / (np.sqrt(2 * np.pi) * settings.hit_sigma_m)
+        + settings.z_rand / settings.max_range_m
+    )
+    # the wall's near face, its far one, and the block's face
+    for x, y in ((2.0, 1.95), (2.0, 2.15), (1.5, 4.05)):
+        assert score(x, y, tracking) == pytest.approx(on_a_wall, abs=1e-4)
+    assert score(1.55, 4.55, tracking) < on_a_wall - 1.0  # 0.4 m inside the block
+    # A search: the thick wall is no surface; the block's face still is.
+    assert score(2.0, 2.05, search) < np.log(settings.z_rand / settings.max_range_m) + 0.1
+    assert score(1.5, 4.05, search) == pytest.approx(on_a_wall, abs=1e-4)
+
+
 def test_while_tracking_the_edge_of_free_space_scores_like_the_unknown_space_beyond_it():
     """A room's far wall the map never marked: free up to y = 2.0 m, unknown beyond. While
     tracking (unknown space above the search's ``p_unknown``), a point on that edge scores
