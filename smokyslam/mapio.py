@@ -109,6 +109,10 @@ def _read_description(yaml_path: Path) -> dict:
         raise MapFileError(f"map file not found: {yaml_path}")
     try:
         description = yaml.safe_load(yaml_path.read_text())
+    except UnicodeDecodeError:
+        raise MapFileError(f"{yaml_path}: not a text (UTF-8) map description") from None
+    except OSError as exc:
+        raise MapFileError(f"{yaml_path}: cannot read it ({exc.strerror or exc})") from None
     except yaml.YAMLError as exc:
         raise MapFileError(f"{yaml_path}: not valid YAML ({exc.__class__.__name__})") from exc
     if not isinstance(description, dict):
@@ -126,6 +130,12 @@ def _read_description(yaml_path: Path) -> dict:
         raise MapFileError(f"{yaml_path}: origin must be finite numbers, got {origin!r}")
     if len(origin) > 2 and origin[2] not in (0, 0.0):
         raise MapFileError(f"{yaml_path}: rotated map origins (yaw != 0) are not supported")
+    if not isinstance(description["image"], str):
+        raise MapFileError(f"{yaml_path}: image must be a file name, got {description['image']!r}")
+    for key in ("negate", "occupied_thresh", "free_thresh"):
+        value = description.get(key, 0)
+        if not isinstance(value, int | float) or not math.isfinite(value):
+            raise MapFileError(f"{yaml_path}: {key} must be a number, got {value!r}")
     if description.get("unknown", UNKNOWN_MEANINGS[0]) not in UNKNOWN_MEANINGS:
         raise MapFileError(
             f"{yaml_path}: unknown must be one of {', '.join(UNKNOWN_MEANINGS)}, "

@@ -88,6 +88,18 @@ def test_bad_map_files_give_clear_errors(tmp_path):
     with pytest.raises(MapFileError, match="unknown must be one of unobserved, solid"):
         load_map(tmp_path / "vague.yaml")
 
+    (tmp_path / "binary.yaml").write_bytes(b"\x89MCAP0\r\n\x00\xff")  # a log given as the map
+    with pytest.raises(MapFileError, match="not a text \\(UTF-8\\) map description"):
+        load_map(tmp_path / "binary.yaml")
+
+    (tmp_path / "words.yaml").write_text(yaml.safe_dump(dict(description, occupied_thresh="high")))
+    with pytest.raises(MapFileError, match="occupied_thresh must be a number, got 'high'"):
+        load_map(tmp_path / "words.yaml")
+
+    (tmp_path / "listed.yaml").write_text(yaml.safe_dump(dict(description, image=["a.pgm"])))
+    with pytest.raises(MapFileError, match="image must be a file name"):
+        load_map(tmp_path / "listed.yaml")
+
 
 def test_what_unknown_means_is_kept_or_read_from_what_the_map_draws(tmp_path):
     cells, spec = _l_shaped_walls()
