@@ -37,6 +37,16 @@ def table(tmp_path_factory) -> Path:
     return folder / "table"
 
 
+def test_paper_table_refuses_a_log_without_a_camera_before_any_run(tmp_path):
+    log = tmp_path / "radar.mcap"
+    args = ("--world", "office", "--seed", "3", "--duration", "3", "--sensors", "radar,imu")
+    assert smokyslam("simulate", *args, "--out", log).returncode == 0
+    out = smokyslam("paper-table", log, "--out", tmp_path / "table")
+    assert out.returncode == 1
+    assert out.stderr.strip().splitlines()[-1].startswith(f"error: {log}: no camera_image topic")
+    assert "Traceback" not in out.stderr and not (tmp_path / "table" / "runs").exists()
+
+
 def test_paper_table_records_its_runs_and_maps(table):
     from test_rerun_recorder import rows_per_entity
 

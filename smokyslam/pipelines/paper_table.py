@@ -83,8 +83,8 @@ def paper_table(
     recording."""
     started = time.perf_counter()
     log_path, out_dir = Path(log_path), Path(out_dir)
-    claim_folder(out_dir, overwrite, PAPER_TABLE_OUTPUTS, markers=PAPER_TABLE_OUTPUTS[:2])
     truth, truth_name = _truth(log_path, config)
+    claim_folder(out_dir, overwrite, PAPER_TABLE_OUTPUTS, markers=PAPER_TABLE_OUTPUTS[:2])
     runs = compare(
         log_path, ("fused", "camera"), LEVELS, config, out_dir, workers, on_progress, True
     )
@@ -197,8 +197,9 @@ def _read(path: Path) -> MapImage | None:
 
 
 def _truth(log_path: Path, config: SmokySlamConfig):
-    """(the truth maps are scored against, its name): the observed one where there is one."""
-    reader = open_log(log_path, config)
+    """(the truth maps are scored against, its name): the observed one where there is one.
+    A log without the radar or the camera the table's runs need is refused before any run."""
+    reader = open_log(log_path, config, require=("radar", "camera_image"))
     observed = reader.observed_ground_truth_map()
     if observed is not None:
         return observed, "observed (what an ideal lidar recorded along the true walk)"
