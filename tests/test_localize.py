@@ -61,6 +61,29 @@ def test_tracking_converges_from_a_metre_and_ten_degrees_off():
     assert mcl.count < 1000  # KLD: a converged cloud needs fewer particles
 
 
+def test_a_tracking_start_draws_its_particles_within_the_cut():
+    """The start's cloud is a Gaussian truncated at ``init_sigma_cut`` sigmas (the position
+    radially, the heading apart). Untruncated, 2000 draws reach 3.5-4 sigmas: on a warehouse
+    those few landed on the neighbouring aisle, 4 m over."""
+    world = l_world()
+    sigmas = np.array([1.0, 0.5, np.radians(15.0)])
+    pose = np.array([5.0, 1.25, 0.3])
+    spread = {}
+    for cut in (2.5, 1e9):
+        settings = LocalizeConfig(max_particles=2000, seed=4, init_sigma_cut=cut)
+        mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
+        mcl.start_tracking(pose, sigmas)
+        z = (mcl.particles - pose) / sigmas
+        spread[cut] = (np.hypot(z[:, 0], z[:, 1]), np.abs(z[:, 2]))
+        assert mcl.count == 2000
+    radial, heading = spread[2.5]
+    assert radial.max() <= 2.5 and heading.max() <= 2.5
+    assert radial.max() > 2.3 and heading.max() > 2.3  # truncated, not squeezed
+    assert np.sqrt(np.mean(heading**2)) > 0.9  # a 2.5-sigma cut keeps 95 % of the spread
+    untruncated_radial, untruncated_heading = spread[1e9]
+    assert untruncated_radial.max() > 3.0 and untruncated_heading.max() > 3.0
+
+
 def test_it_recovers_after_a_kidnapping():
     world, rng = l_world(), np.random.default_rng(2)
     settings = LocalizeConfig(max_particles=2000, seed=3)
@@ -77,29 +100,32 @@ def test_it_recovers_after_a_kidnapping():
     # fall of the fit).
     back = 9.0 - 0.1 * np.arange(48)
     second = np.column_stack([np.full(48, 1.25), back, np.full(48, -np.pi / 2)])
-    errors = []
+    errors, searching = [], []
     for k in range(len(second)):
         step = se2_between(second[k - 1], second[k]) if k else se2_between(first[-1], first[-1])
         mcl.predict(step, STEP_COV)
         mcl.update(scan(world, second[k], rng))
         errors.append(np.hypot(*(mcl.estimate()[0][:2] - second[k, :2])))
+        searching.append(mcl.p_unknown == settings.p_unknown)
     assert errors[0] > 2.0 and np.all(np.array(errors[-8:]) < 0.3)
-    assert mcl.p_unknown == settings.p_unknown  # the likelihood collapsed: searching since
+    # The likelihood collapsed: it searched, and once settled again it tracks again.
+    assert any(searching) and not searching[-1], searching
 
 
 def test_scouts_find_the_pose_a_confident_start_missed():
     """A start 2.5 m off down the corridor with a tight cloud: no particle near the truth,
     and the likelihood as poor from the first scan on, so augmented MCL never injects. The
     scouts searching around the estimate find where the scans fit, and the filter moves.
-    Measured over 4 seeds: recovered in 4; without scouts, in 1 (by a chance injection)."""
+    Measured over filter seeds 0-7: recovered for good after 41-42 frames; without scouts,
+    in none of them within the walk."""
     world, rng = l_world(), np.random.default_rng(5)
     settings = LocalizeConfig(seed=2)
     mcl = MonteCarloLocalizer(LikelihoodField(trinary(world), world.spec, settings), settings)
-    truth = np.column_stack([5.0 + 0.12 * np.arange(50), np.full(50, 1.25), np.zeros(50)])
+    truth = np.column_stack([5.0 + 0.12 * np.arange(60), np.full(60, 1.25), np.zeros(60)])
     mcl.start_tracking(truth[0] - [2.5, 0.0, 0.0], [0.1, 0.1, np.radians(3.0)])
     errors = walk(world, truth, mcl, rng)
     assert errors[0] > 2.0
-    assert np.all(errors[-8:] < 0.3), errors
+    assert np.all(errors[-12:] < 0.3), errors
 
 
 def share_near(mcl: MonteCarloLocalizer, pose: np.ndarray) -> float:

@@ -82,6 +82,14 @@ class LocalizeConfig(_Section):
     )
     init_sigma_m: float = Field(1.0, gt=0.0, description="tracking start: position sigma")
     init_sigma_deg: float = Field(15.0, gt=0.0, description="tracking start: heading sigma")
+    init_sigma_cut: float = Field(
+        2.5,
+        ge=1.0,
+        description="tracking start: particles drawn within this many sigmas (the position"
+        " radially, the heading apart), a truncated Gaussian. Untruncated, the few particles"
+        " 3-4 sigmas out landed on a warehouse's neighbouring rack aisle, which the first"
+        " scans can favour",
+    )
     converged_m: float = Field(
         0.3, gt=0.0, description="converged: position error at most this from then on"
     )
