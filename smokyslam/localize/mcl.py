@@ -45,7 +45,13 @@ SETTLED_SHARE = 0.9
 RESUME_FRAMES = 5
 """Frames a search started from tracking must stay settled before tracking resumes."""
 MODE_RADIUS_M, MODE_RADIUS_RAD = 1.0, np.radians(30.0)
-"""How far from the heaviest bin a particle still belongs to the main mode."""
+"""How far from its seed (a KLD bin's mean) a particle still belongs to the main mode."""
+MODE_CANDIDATES = 5
+"""The heaviest KLD bins whose neighbourhoods compete to be the main mode. The heaviest bin
+alone is where the particles are densest, not where most weight lies: in warehouse 20030 a
+clump of injected particles 8 m away held it with 25 % of the weight while 33 % lay within
+0.5 m of the truth, over more bins. On the real Intel lab log the estimate then jumped 5-6 m
+for a scan or two (filter seeds 4-6 of 0-7)."""
 
 
 class MonteCarloLocalizer:
@@ -239,8 +245,9 @@ class MonteCarloLocalizer:
     def estimate(self) -> tuple[np.ndarray, np.ndarray]:
         """((3,) weighted mean pose of the main mode, (3, 3) covariance of the whole cloud).
 
-        The main mode: the particles within ``MODE_RADIUS_M`` and ``MODE_RADIUS_RAD`` of the
-        heaviest KLD bin's mean; the mean of a cloud split between places lies in neither.
+        The main mode: the particles within ``MODE_RADIUS_M`` and ``MODE_RADIUS_RAD`` of a
+        KLD bin's mean, of the ``MODE_CANDIDATES`` heaviest bins the one holding the most
+        weight; the mean of a cloud split between places lies in neither.
         """
         mean = self.set.mean()
         mode, _ = self._main_mode()
@@ -256,20 +263,25 @@ class MonteCarloLocalizer:
         return self._mode_cache[1]
 
     def _find_main_mode(self) -> tuple[np.ndarray, np.ndarray]:
-        seed = weighted_mean(*self._heaviest_bin())
-        mode = near(self.particles, seed, MODE_RADIUS_M, MODE_RADIUS_RAD)
+        """Of the ``MODE_CANDIDATES`` heaviest KLD bins, the one whose neighbourhood holds the
+        most weight."""
+        bins = self._bins()
+        _, label = np.unique(bins, axis=0, return_inverse=True)
+        label = label.reshape(-1)
+        mass = np.bincount(label, weights=self.weights)
+        seeds = [
+            weighted_mean(self.particles[label == b], self.weights[label == b])
+            for b in np.argsort(mass)[::-1][:MODE_CANDIDATES]
+        ]
+        held = [self.weights[self._near(seed)].sum() for seed in seeds]
+        seed = seeds[int(np.argmax(held))]
+        mode = self._near(seed)
         if not mode.any():
             return seed, np.ones(len(self.particles), dtype=bool)
         return self.set.mean(mode), mode
 
-    def _heaviest_bin(self) -> tuple[np.ndarray, np.ndarray]:
-        """The particles and weights of the KLD bin holding the most weight."""
-        bins = self._bins()
-        _, label = np.unique(bins, axis=0, return_inverse=True)
-        label = label.reshape(-1)
-        heaviest = np.argmax(np.bincount(label, weights=self.weights))
-        keep = label == heaviest
-        return self.particles[keep], self.weights[keep]
+    def _near(self, seed: np.ndarray) -> np.ndarray:
+        return near(self.particles, seed, MODE_RADIUS_M, MODE_RADIUS_RAD)
 
     @property
     def count(self) -> int:
