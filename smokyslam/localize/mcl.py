@@ -41,7 +41,8 @@ test: past 0.2 after 11 scans, 0.35 after 21, 0.55 after 40), so injection start
 recovered for good after 23-30 scans over 8 seeds (13-33 at 0.2). A search (a global start)
 keeps ``INJECT_FLOOR``: there a fall of the fit is how a wrong settlement shows."""
 SETTLED_SHARE = 0.9
-"""A global start's cloud has settled once its main mode holds this share of the weight."""
+"""A cloud has settled once its main mode holds this share of the weight (a global start's,
+and a search's set off while tracking)."""
 RESUME_FRAMES = 5
 """Frames a search started from tracking must stay settled before tracking resumes."""
 MODE_RADIUS_M, MODE_RADIUS_RAD = 1.0, np.radians(30.0)
@@ -154,9 +155,9 @@ class MonteCarloLocalizer:
             self.set.reset(self.scouts.take(len(self.set)))  # they found a better place
             self._w_mode = 0.0
             return
+        self._resume_tracking(inject == 0.0 and self.weights[near].sum() >= SETTLED_SHARE)
         # Resample only when the weights have degenerated (or particles are to be injected):
         # resampling every frame lets chance alone pick between equally good hypotheses.
-        self._resume_tracking(inject == 0.0 and self.weights[near].sum() >= SETTLED_SHARE)
         if inject > 0.0:
             self._tracking = False  # the likelihood collapsed: search until settled again
         if inject > 0.0 or self.set.degenerate(s.resample_ess):
