@@ -270,10 +270,8 @@ class MonteCarloLocalizer:
         _, label = np.unique(bins, axis=0, return_inverse=True)
         label = label.reshape(-1)
         mass = np.bincount(label, weights=self.weights)
-        seeds = [
-            weighted_mean(self.particles[label == b], self.weights[label == b])
-            for b in np.argsort(mass)[::-1][:MODE_CANDIDATES]
-        ]
+        bins_kept = (label == b for b in np.argsort(mass)[::-1][:MODE_CANDIDATES])
+        seeds = [weighted_mean(self.particles[keep], self.weights[keep]) for keep in bins_kept]
         held = [self.weights[self._near(seed)].sum() for seed in seeds]
         seed = seeds[int(np.argmax(held))]
         mode = self._near(seed)
