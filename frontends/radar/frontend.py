@@ -72,6 +72,11 @@ class RadarFrontend:
         """The frames still queued in the odometry's last, partial batch."""
         return self._pair(self._odometry.flush())
 
+    @property
+    def gyro_bias_radps(self) -> float | None:
+        """The odometry's gyro-bias estimate, rad/s (None when it estimates none)."""
+        return self._odometry.gyro_bias_radps
+
     def points_base_xy(self, frame: RadarFrame) -> np.ndarray:
         """(N, 2) the frame's points in base_link, metres."""
         return transform_points_2d(self.pose_base_radar, frame.scan.points_xyz_m[:, :2])

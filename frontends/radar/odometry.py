@@ -66,6 +66,11 @@ class DeadReckoning:
         """Nothing is ever pending."""
         return []
 
+    @property
+    def gyro_bias_radps(self) -> None:
+        """Dead reckoning estimates no gyro bias."""
+        return None
+
 
 @dataclass
 class _Pending:
@@ -97,6 +102,13 @@ class RadarOdometry:
         # The heading filter needs one registration per prediction, jointly with the prior.
         self._heading_feedback = config.matcher == "joint-icp" and self._batch_frames == 1
         self._prior = MotionPriorEstimator(config, anchored=self._heading_feedback)
+        self._estimates_bias = self._heading_feedback and config.gyro_bias_sigma_degps > 0
+
+    @property
+    def gyro_bias_radps(self) -> float | None:
+        """The heading filter's gyro-bias estimate, rad/s; None when it estimates none (a
+        batch matcher, or ``gyro_bias_sigma_degps`` 0)."""
+        return self._prior.heading.bias_radps if self._estimates_bias else None
 
     def register(self, scan: RadarScan, imu: Iterable[ImuSample] = ()) -> list[Odometry]:
         """Queue ``scan`` with its prior; register the batch when it is full."""

@@ -28,6 +28,7 @@ import numpy as np
 
 from smokyslam.backends.slam import SlamBackend
 from smokyslam.errors import SmokySlamError
+from smokyslam.evaluation.gyro_bias import GyroTally
 from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
 from smokyslam.frontends.camera.result import CameraOdometryResult
 from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
@@ -95,7 +96,8 @@ class RunEstimate:
     ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
     health: the odometry's and the camera's health over time. localization: the localizer's
     track, in the saved map's frame (None without a localizer). step_pairs: the radar and
-    camera steps of the keyframe pairs (None without camera factors), for evaluation.
+    camera steps of the keyframe pairs (None without camera factors), for evaluation. gyro:
+    the gyro's yaw rate integrated over the run (None without IMU samples), for evaluation.
     """
 
     stamps_s: np.ndarray
@@ -111,6 +113,7 @@ class RunEstimate:
     health: RunHealth = field(default_factory=RunHealth)
     localization: LocalizationTrack | None = None
     step_pairs: StepPairs | None = None
+    gyro: GyroTally | None = None
     interrupted: bool = False
     failure: str | None = None
     """Why a stage stopped the run part-way (None: it read every frame or was stopped)."""
@@ -138,6 +141,7 @@ class RunLoop:
         self._clock = StageClock()
         self._camera_restarts = 0
         self._health = RunHealth()
+        self._gyro = GyroTally()
 
     def run(self, frames: Iterable[Frame]) -> RunEstimate:
         """Every frame through the stages, then the estimate (the camera worker is stopped
@@ -185,6 +189,7 @@ class RunLoop:
         radar, camera = self.stages.radar, self.stages.camera
         if isinstance(frame, ImuSample) and radar is not None:
             radar.add_imu(frame)
+            self._gyro.add(frame)
         elif isinstance(frame, RadarScan) and radar is not None:
             with self._clock.time("radar"):
                 self._order.extend(radar.register(self.stages.smoke.apply(frame)))
@@ -340,6 +345,8 @@ class RunLoop:
                 "%d dense radar scans thinned to radar_odometry.max_points points",
                 self.stages.radar.thinned,
             )
+        if self.stages.radar is not None and self.stages.radar.gyro_bias_radps is not None:
+            extra["gyro_bias_degps"] = float(np.degrees(self.stages.radar.gyro_bias_radps))
         if self.stages.camera is not None:
             extra["reinitializations"] = self._camera_restarts
         if self.stages.camera_steps is not None:
@@ -366,4 +373,5 @@ class RunLoop:
             health=self._health,
             localization=self.stages.localizer.track if self.stages.localizer else None,
             step_pairs=backend.step_pairs,
+            gyro=self._gyro if self._gyro.samples else None,
         )

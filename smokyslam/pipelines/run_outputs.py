@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from smokyslam.evaluation.gyro_bias import gyro_bias_metrics
 from smokyslam.evaluation.map_metrics import map_scores, score_text
 from smokyslam.evaluation.run_evaluation import RunEvaluation
 from smokyslam.evaluation.run_plots import plot_error, plot_health
@@ -58,6 +59,10 @@ def write_trajectory(
         **evaluation.metrics(),
         **estimate.graph,
     }
+    if estimate.gyro is not None:
+        bias = gyro_bias_metrics(estimate.gyro, truth, estimate.extra.get("gyro_bias_degps"))
+        if bias is not None:
+            metrics["gyro_bias"] = bias
     return out.update_metrics(metrics)
 
 
