@@ -3,17 +3,18 @@
 Radar odometry predicts each frame's turn from the gyro less its bias estimate
 (``frontends/radar/motion_prior.py``), so on a long walk the heading drifts by whatever bias
 is left. Evaluation measures the bias the gyro really had, without the estimator: the gyro's
-integrated yaw rate over the IMU's span, less the true turn over that span, per second. A rate
-is held since the previous sample, as the estimator integrates it.
+integrated yaw rate over the IMU's span, less the true turn over that span, per second. The
+rate is integrated by the estimator's own :class:`GyroIntegrator`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from smokyslam.frontends.radar.motion_prior import GyroIntegrator
 from smokyslam.types import GroundTruthTrajectory, ImuSample
 
 SPAN_SLACK_S = 0.1
@@ -32,13 +33,13 @@ class GyroTally:
     end_s: float | None = None
     yaw_rad: float = 0.0
     samples: int = 0
+    _integrator: GyroIntegrator = field(default_factory=GyroIntegrator, repr=False)
 
     def add(self, sample: ImuSample) -> None:
         stamp_s = float(sample.stamp_s)
-        if self.end_s is None:
-            self.start_s = stamp_s
-        else:
-            self.yaw_rad += float(sample.gyro_radps[2]) * max(stamp_s - self.end_s, 0.0)
+        if self.start_s is None:
+            self.start_s = stamp_s  # the first sample's rate is held over no time
+        self.yaw_rad += self._integrator.integrate([sample], self.start_s) or 0.0
         self.end_s = stamp_s
         self.samples += 1
 
