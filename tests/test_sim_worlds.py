@@ -76,6 +76,15 @@ def test_doors_connect_every_room_for_a_walker(worlds, name):
         assert len(big) >= 3
 
 
+def test_a_corridor_side_room_that_fits_exactly_is_built():
+    # Corridor 10062 has a side room exactly as long as the room it may hold; rounding made the
+    # range its position is drawn from negative, and the world could not be built.
+    world = generate_world("corridor", 10062, CONFIG)
+    _, n_parts = label(_free(world), structure=FOUR)
+    assert n_parts == 1
+    assert world.spec.shape != generate_world("corridor", 10061, CONFIG).spec.shape
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_office_size_rooms_doors_and_furniture(seed):
     world = generate_world("office", seed, CONFIG)

@@ -214,7 +214,9 @@ def _corridor(draw: _Draw) -> _Layout:
             lo, hi = (seg.x0, seg.x1) if along_x else (seg.y0, seg.y1)
             if hi - lo - 4.0 * half < size:
                 continue
-            a = draw.snap(draw.rng.uniform(lo + 2.0 * half, hi - 2.0 * half - size))
+            # The room can fit exactly; the two sums then differ by rounding (corridor 10062).
+            first, last = lo + 2.0 * half, hi - 2.0 * half - size
+            a = draw.snap(draw.rng.uniform(first, max(first, last)))
             d = draw.snap(draw.rng.uniform(a + 1.0, a + size - 1.0 - door_w))
             if along_x:
                 y0 = seg.y1 + wall if side > 0 else seg.y0 - wall - depth
