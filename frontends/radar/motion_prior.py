@@ -7,13 +7,14 @@ the SE(2) exponential of ``[v * dt, yaw_delta]`` with ``v`` the newer frame's Do
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
 
 from smokyslam.config import RadarOdometryConfig
 from smokyslam.frontends.radar.doppler import EgoVelocity, estimate_ego_velocity
+from smokyslam.frontends.radar.map_age_bias import MapAge, MapAgeBias, scan_yaw
 from smokyslam.geometry import se2_exp, wrap_angle
 from smokyslam.types import ImuSample, RadarScan
 
@@ -34,6 +35,8 @@ class MotionPrior:
     doppler: the ego-velocity estimate it came from. dt_s: the frame interval it covers.
     match_covariance: (3, 3) prior covariance for scan matching: the yaw variance is the
     heading filter's, which also carries the previous frame's yaw uncertainty.
+    stamp_s: the frame's stamp. gyro_yaw_rad: the raw gyro integral up to it, from the
+    starting yaw, no bias taken off (NaN once a frame had no gyro samples).
     """
 
     delta: np.ndarray
@@ -41,6 +44,8 @@ class MotionPrior:
     doppler: EgoVelocity
     match_covariance: np.ndarray | None = None
     dt_s: float = 0.0
+    stamp_s: float = np.nan
+    gyro_yaw_rad: float = np.nan
 
     def __post_init__(self) -> None:
         if self.match_covariance is None:
@@ -127,12 +132,11 @@ class HeadingFilter:
         The scan-only yaw measurement and its variance are recovered from that shrinkage; the
         variance is then inflated for the frames that share its map (``decorrelation_s``).
         """
-        if not 0.0 < posterior_var < prior_var * (1.0 - 1e-6):
+        scan = scan_yaw(prior_var, posterior_var, innovation_rad)
+        if scan is None:
             return
-        shrink = 1.0 - posterior_var / prior_var
-        scan_var = 1.0 / (1.0 / posterior_var - 1.0 / prior_var)
-        scan_var *= max(1.0, self._decorrelation_s / self._dt_s)
-        innovation = innovation_rad / shrink
+        scan_var = scan.variance_rad2 * max(1.0, self._decorrelation_s / self._dt_s)
+        innovation = scan.innovation_rad
         P = self.covariance
         gain = P[:, 0] / (P[0, 0] + scan_var)
         self.bias_radps += float(gain[1] * innovation)
@@ -144,13 +148,26 @@ class MotionPriorEstimator:
 
     With ``anchored`` (scan matching feeds every frame back through :meth:`correct_heading`)
     the gyro bias is estimated and the matcher's yaw prior comes from the heading filter;
-    otherwise the prior is the plain Doppler/gyro step.
+    otherwise the prior is the plain Doppler/gyro step. Where the filter estimates a bias, the
+    map-age fit (``map_age_bias.py``) runs beside it, and once it is sure enough
+    (``map_age_bias_below_degps``) its bias replaces the filter's after every frame.
+    ``initial_yaw_rad``: where the raw gyro integral starts.
     """
 
-    def __init__(self, config: RadarOdometryConfig, anchored: bool = False) -> None:
+    def __init__(
+        self, config: RadarOdometryConfig, anchored: bool = False, initial_yaw_rad: float = 0.0
+    ) -> None:
         self._config = config
         self._anchored = anchored
         self._gyro = GyroIntegrator()
+        self._gyro_yaw_rad = float(initial_yaw_rad)
+        self.map_age = (
+            MapAgeBias(config.heading_decorrelation_s, np.radians(config.map_age_bias_below_degps))
+            if anchored
+            and config.gyro_bias_sigma_degps > 0
+            and config.map_age_bias_below_degps is not None
+            else None
+        )
         self._last_stamp_s: float | None = None
         self._last_velocity = np.zeros(2)
         self._registered_velocity = False  # _last_velocity came from scan matching
@@ -174,12 +191,16 @@ class MotionPriorEstimator:
         previous = self._last_stamp_s
         self._last_stamp_s = scan.stamp_s
         yaw_delta = self._gyro.integrate(imu, scan.stamp_s if previous is None else previous)
+        stamps = {"stamp_s": scan.stamp_s}
         if previous is None:
-            return MotionPrior(np.zeros(3), np.diag([1e-6, 1e-6, 1e-6]), doppler)
+            stamps["gyro_yaw_rad"] = self._gyro_yaw_rad
+            return MotionPrior(np.zeros(3), np.diag([1e-6, 1e-6, 1e-6]), doppler, **stamps)
+        self._gyro_yaw_rad += np.nan if yaw_delta is None else yaw_delta
+        stamps["gyro_yaw_rad"] = self._gyro_yaw_rad
         dt_s = max(scan.stamp_s - previous, 1e-6)
         if dt_s > config.max_step_s:  # a gap in the log: nothing is known of the motion
             gap_cov = np.diag([GAP_SIGMA_M**2, GAP_SIGMA_M**2, NO_GYRO_YAW_SIGMA_RAD**2])
-            return MotionPrior(np.zeros(3), gap_cov, doppler, gap_cov, dt_s)
+            return MotionPrior(np.zeros(3), gap_cov, doppler, gap_cov, dt_s, **stamps)
         velocity_cov = doppler.covariance
         if doppler.valid:
             self._last_velocity = doppler.velocity_mps
@@ -210,6 +231,7 @@ class MotionPriorEstimator:
             doppler,
             J @ anchored_cov @ J.T,
             dt_s,
+            **stamps,
         )
 
     def registered(self, prior: MotionPrior, registered_delta: np.ndarray) -> None:
@@ -221,9 +243,30 @@ class MotionPriorEstimator:
         self._registered_velocity = True
 
     def correct_heading(
-        self, prior: MotionPrior, registered_delta: np.ndarray, covariance: np.ndarray
+        self,
+        prior: MotionPrior,
+        registered_delta: np.ndarray,
+        covariance: np.ndarray,
+        registered_yaw_rad: float = np.nan,
+        map_age: MapAge | None = None,
     ) -> None:
         """Feed one frame's registered step (solved with ``prior.match_covariance``) back
-        into the heading filter."""
+        into the heading filter, and with its registered yaw and what it matched
+        (``map_age``) into the map-age fit, whose bias then replaces the filter's once sure."""
+        prior_var, posterior_var = prior.match_covariance[2, 2], float(covariance[2, 2])
         innovation = float(wrap_angle(registered_delta[2] - prior.delta[2]))
-        self.heading.correct(prior.match_covariance[2, 2], float(covariance[2, 2]), innovation)
+        if self.map_age is not None and map_age is not None:
+            scan = scan_yaw(prior_var, posterior_var, innovation)
+            if scan is not None:
+                scan_yaw_rad = registered_yaw_rad - innovation + scan.innovation_rad
+                offset = scan_yaw_rad - prior.gyro_yaw_rad
+                self.map_age.add(prior.stamp_s, offset, scan, prior.dt_s, map_age)
+        self.heading.correct(prior_var, posterior_var, innovation)
+        bias = None if self.map_age is None else self.map_age.bias_radps
+        if bias is not None:
+            self.heading.bias_radps = bias
+
+    @staticmethod
+    def first(prior: MotionPrior) -> MotionPrior:
+        """The prior of the first frame, which defines the origin: no step."""
+        return replace(prior, delta=np.zeros(3), match_covariance=prior.covariance)

@@ -101,7 +101,9 @@ class RadarOdometry:
         self._started = False
         # The heading filter needs one registration per prediction, jointly with the prior.
         self._heading_feedback = config.matcher == "joint-icp" and self._batch_frames == 1
-        self._prior = MotionPriorEstimator(config, anchored=self._heading_feedback)
+        self._prior = MotionPriorEstimator(
+            config, anchored=self._heading_feedback, initial_yaw_rad=float(self.pose[2])
+        )
         self._estimates_bias = self._heading_feedback and config.gyro_bias_sigma_degps > 0
 
     @property
@@ -114,7 +116,7 @@ class RadarOdometry:
         """Queue ``scan`` with its prior; register the batch when it is full."""
         prior = self._prior.predict(scan, imu)
         if not self._started:  # the first frame defines the origin
-            prior = MotionPrior(np.zeros(3), prior.covariance, prior.doppler, prior.covariance)
+            prior = MotionPriorEstimator.first(prior)
             self._started = True
         self._pending.append(_Pending(scan.stamp_s, scan.points_xy_m, prior))
         if len(self._pending) < self._batch_frames:
@@ -134,7 +136,13 @@ class RadarOdometry:
             if result.matched and result.inliers > 0:
                 self._prior.registered(pending.prior, result.delta)
                 if self._heading_feedback:
-                    self._prior.correct_heading(pending.prior, result.delta, result.covariance)
+                    self._prior.correct_heading(
+                        pending.prior,
+                        result.delta,
+                        result.covariance,
+                        float(result.pose_world_sensor[2]),
+                        result.map_age,
+                    )
         return [_odometry(p, r) for p, r in zip(batch, results, strict=True)]
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from smokyslam.config import RadarOdometryConfig
 from smokyslam.frontends.radar.local_map import LineMatches, LocalMap
+from smokyslam.frontends.radar.map_age_bias import MapAge
 from smokyslam.frontends.radar.motion_prior import MotionPrior
 from smokyslam.geometry import rotation_2d, se2_compose, transform_points_2d, wrap_angle
 
@@ -36,6 +37,7 @@ class MatchResult:
     inflated when the residuals exceed their assumed sigmas.
     inliers: correspondences within 3 robust-kernel widths. fitness: their RMS offset, m.
     matched: False when too few correspondences; the pose then follows the prior.
+    map_age: what the inliers matched, weighted by their yaw information (None without).
     """
 
     pose_world_sensor: np.ndarray
@@ -44,6 +46,7 @@ class MatchResult:
     inliers: int
     fitness: float
     matched: bool
+    map_age: MapAge | None = None
 
 
 REFIT_M = 0.03
@@ -98,7 +101,8 @@ class JointIcpMatcher:
         self, frames_xy: list[np.ndarray], anchor_pose: np.ndarray, priors: list[MotionPrior]
     ) -> list[MatchResult]:
         """Register B frames, each (N_b, 2) sensor-frame points, given the world pose (3,) of
-        the frame before them and B priors (frame b-1 -> b); then add them to the map."""
+        the frame before them and B priors (frame b-1 -> b); then add them to the map, each
+        point with its frame's stamp and heading offset (registered yaw less raw gyro yaw)."""
         poses = [anchor_pose]
         for prior in priors:
             poses.append(se2_compose(poses[-1], prior.delta))
@@ -107,9 +111,10 @@ class JointIcpMatcher:
         if usable:
             poses = self._solve(frames_xy, poses, priors)
         results = self._summarize(frames_xy, poses, priors, usable)
-        for points, result in zip(frames_xy, results, strict=True):
+        for points, prior, result in zip(frames_xy, priors, results, strict=True):
             pose = result.pose_world_sensor
-            self.map.insert(transform_points_2d(pose, points), pose[:2])
+            offset = wrap_angle(pose[2] - prior.gyro_yaw_rad)
+            self.map.insert(transform_points_2d(pose, points), pose[:2], prior.stamp_s, offset)
         return results
 
     def _solve(
@@ -218,7 +223,10 @@ class JointIcpMatcher:
             # Residuals larger than their sigmas mean the Hessian is overconfident.
             covariance *= max(1.0, chi2)
             matched = count >= config.min_matches
-            results.append(MatchResult(poses[b + 1], delta, covariance, count, fitness, matched))
+            age = _map_age(lines[b], terms, inlier)
+            results.append(
+                MatchResult(poses[b + 1], delta, covariance, count, fitness, matched, age)
+            )
         return results
 
     def _floor_var(self, prior: MotionPrior) -> float:
@@ -260,3 +268,14 @@ class JointIcpMatcher:
         residual = np.where(matched, offset / sigma, 0.0)
         weight = np.where(matched, 1.0 / (1.0 + (residual / config.robust_kernel) ** 2), 0.0)
         return _PointTerms(residual, jacobian, weight, sigma, matched)
+
+
+def _map_age(lines: LineMatches, terms: _PointTerms, inlier: np.ndarray) -> MapAge | None:
+    """The inliers' map stamps and heading offsets, weighted by their yaw information."""
+    weight = terms.weight * terms.jacobian[:, 2] ** 2 * inlier
+    total = float(weight.sum())
+    if total <= 0.0:
+        return None
+    stamp_s = float(weight @ np.where(weight > 0.0, lines.stamps_s, 0.0)) / total
+    offset_rad = float(weight @ np.where(weight > 0.0, lines.heading_offsets_rad, 0.0)) / total
+    return MapAge(stamp_s, offset_rad)

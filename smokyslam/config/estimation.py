@@ -25,6 +25,12 @@ class RadarOdometryConfig(_Section):
     heading_decorrelation_s: float = Field(
         1.0, ge=0.0, description="registrations this close in time: one yaw measurement"
     )
+    map_age_bias_below_degps: float | None = Field(
+        0.029,
+        gt=0.0,
+        description="gyro bias from scan yaw against the matched map's age replaces the "
+        "heading filter's once its sigma is below this (null: never)",
+    )
     doppler_inlier_mps: float = Field(0.1, gt=0.0, description="RANSAC inlier threshold")
     doppler_min_inliers: int = Field(4, ge=2)
     map_radius_m: float = Field(12.0, gt=0.0, description="local map keeps points this near")
