@@ -47,6 +47,11 @@ class ScanYaw:
     innovation_rad: float
     variance_rad2: float
 
+    def decorrelated_variance(self, decorrelation_s: float, dt_s: float) -> float:
+        """The variance inflated for the registrations within ``decorrelation_s`` that share
+        this one's map (frames ``dt_s`` apart): together they count as one measurement."""
+        return self.variance_rad2 * max(1.0, decorrelation_s / max(dt_s, 1e-6))
+
 
 def scan_yaw(prior_var: float, posterior_var: float, innovation_rad: float) -> ScanYaw | None:
     """The scan-only yaw of a registration solved with a yaw prior of ``prior_var`` that moved
@@ -101,6 +106,6 @@ class MapAgeBias:
         residual = float(wrap_angle(scan_heading_offset_rad - matched.heading_offset_rad))
         if not (np.isfinite(age_s) and np.isfinite(residual)) or age_s <= MIN_AGE_S:
             return  # too young to tell, or a frame without gyro samples in between
-        variance = scan.variance_rad2 * max(1.0, self._decorrelation_s / max(dt_s, 1e-6))
+        variance = scan.decorrelated_variance(self._decorrelation_s, dt_s)
         self._sum_rt += residual * age_s / variance
         self._sum_tt += age_s * age_s / variance

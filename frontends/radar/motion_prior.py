@@ -135,7 +135,7 @@ class HeadingFilter:
         scan = scan_yaw(prior_var, posterior_var, innovation_rad)
         if scan is None:
             return
-        scan_var = scan.variance_rad2 * max(1.0, self._decorrelation_s / self._dt_s)
+        scan_var = scan.decorrelated_variance(self._decorrelation_s, self._dt_s)
         innovation = scan.innovation_rad
         P = self.covariance
         gain = P[:, 0] / (P[0, 0] + scan_var)
@@ -161,11 +161,11 @@ class MotionPriorEstimator:
         self._anchored = anchored
         self._gyro = GyroIntegrator()
         self._gyro_yaw_rad = float(initial_yaw_rad)
+        self.estimates_bias = anchored and config.gyro_bias_sigma_degps > 0
+        """Whether the heading filter (and the map-age fit beside it) estimates a gyro bias."""
         self.map_age = (
             MapAgeBias(config.heading_decorrelation_s, np.radians(config.map_age_bias_below_degps))
-            if anchored
-            and config.gyro_bias_sigma_degps > 0
-            and config.map_age_bias_below_degps is not None
+            if self.estimates_bias and config.map_age_bias_below_degps is not None
             else None
         )
         self._last_stamp_s: float | None = None

@@ -104,13 +104,13 @@ class RadarOdometry:
         self._prior = MotionPriorEstimator(
             config, anchored=self._heading_feedback, initial_yaw_rad=float(self.pose[2])
         )
-        self._estimates_bias = self._heading_feedback and config.gyro_bias_sigma_degps > 0
 
     @property
     def gyro_bias_radps(self) -> float | None:
-        """The heading filter's gyro-bias estimate, rad/s; None when it estimates none (a
-        batch matcher, or ``gyro_bias_sigma_degps`` 0)."""
-        return self._prior.heading.bias_radps if self._estimates_bias else None
+        """The gyro-bias estimate in use, rad/s (the heading filter's, replaced by the map-age
+        fit once it is sure); None when none is estimated (a batch matcher, or
+        ``gyro_bias_sigma_degps`` 0)."""
+        return self._prior.heading.bias_radps if self._prior.estimates_bias else None
 
     def register(self, scan: RadarScan, imu: Iterable[ImuSample] = ()) -> list[Odometry]:
         """Queue ``scan`` with its prior; register the batch when it is full."""
