@@ -88,6 +88,7 @@ def test_a_failing_run_is_recorded_and_the_others_go_on(swept):
         ("worlds:\n  - {log: nowhere.mcap}\nsources: [radar]\n", "log not found: nowhere.mcap"),
         (TINY + "configs: {x: {smoke: {radar_los: 1}}}\n", "configs.x"),
         (TINY.replace("seeds", "seed"), "worlds.0.seed"),
+        (TINY + "configs: {off: {}}\n", "config name False is not text"),
     ],
 )
 def test_bad_sweep_files_are_one_clear_line(tmp_path, text, message):

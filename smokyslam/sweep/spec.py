@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from smokyslam.config import SmokySlamConfig, deep_update, load_config
 from smokyslam.errors import ConfigError, SmokySlamError
@@ -58,6 +58,17 @@ class SweepFile(_Strict):
     smoke: list[str] = Field(default_factory=lambda: ["0:0"], min_length=1)
     sources: list[str] = Field(min_length=1)
     configs: dict[str, dict[str, Any]] = Field(default_factory=lambda: {"default": {}})
+
+    @field_validator("configs", mode="before")
+    @classmethod
+    def _names_are_text(cls, configs: Any) -> Any:
+        for name in configs if isinstance(configs, dict) else ():
+            if not isinstance(name, str):
+                raise ValueError(
+                    f"config name {name!r} is not text (YAML reads a bare off, on, yes, no, "
+                    "true, false or number as one): quote it"
+                )
+        return configs
 
 
 @dataclass(frozen=True)
