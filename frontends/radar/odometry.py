@@ -74,9 +74,8 @@ class DeadReckoning:
 
 @dataclass
 class _Pending:
-    stamp_s: float
     points_xy: np.ndarray
-    prior: MotionPrior
+    prior: MotionPrior  # carries the frame's stamp_s
 
 
 class RadarOdometry:
@@ -118,7 +117,7 @@ class RadarOdometry:
         if not self._started:  # the first frame defines the origin
             prior = MotionPriorEstimator.first(prior)
             self._started = True
-        self._pending.append(_Pending(scan.stamp_s, scan.points_xy_m, prior))
+        self._pending.append(_Pending(scan.points_xy_m, prior))
         if len(self._pending) < self._batch_frames:
             return []
         return self.flush()
@@ -154,7 +153,11 @@ def _odometry(pending: _Pending, result: MatchResult) -> Odometry:
         extra=_doppler_extra(pending.prior),
     )
     return Odometry(
-        pending.stamp_s, result.pose_world_sensor.copy(), result.delta, result.covariance, health
+        pending.prior.stamp_s,
+        result.pose_world_sensor.copy(),
+        result.delta,
+        result.covariance,
+        health,
     )
 
 
