@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from smokyslam.config import RadarOdometryConfig
+from smokyslam.frontends.radar.map_age_bias import scan_yaw
 from smokyslam.frontends.radar.motion_prior import (
     GyroIntegrator,
     HeadingFilter,
@@ -65,7 +66,7 @@ def test_heading_filter_learns_a_constant_bias_from_map_anchored_yaw():
         measured = yaw_true + scan_sigma * rng.normal()
         posterior_var = 1.0 / (1.0 / prior_var + 1.0 / scan_sigma**2)
         yaw_est = predicted + posterior_var / scan_sigma**2 * (measured - predicted)
-        heading.correct(prior_var, posterior_var, yaw_est - predicted)
+        heading.correct(scan_yaw(prior_var, posterior_var, yaw_est - predicted))
     assert heading.bias_radps == pytest.approx(bias, abs=np.radians(0.1))
     assert abs(yaw_est - yaw_true) < np.radians(1.0)
 

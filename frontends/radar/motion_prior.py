@@ -14,7 +14,7 @@ import numpy as np
 
 from smokyslam.config import RadarOdometryConfig
 from smokyslam.frontends.radar.doppler import EgoVelocity, estimate_ego_velocity
-from smokyslam.frontends.radar.map_age_bias import MapAge, MapAgeBias, scan_yaw
+from smokyslam.frontends.radar.map_age_bias import MapAge, MapAgeBias, ScanYaw, scan_yaw
 from smokyslam.geometry import se2_exp, wrap_angle
 from smokyslam.types import ImuSample, RadarScan
 
@@ -125,14 +125,12 @@ class HeadingFilter:
         self.covariance = F @ self.covariance @ F.T + Q
         return float(self.covariance[0, 0])
 
-    def correct(self, prior_var: float, posterior_var: float, innovation_rad: float) -> None:
-        """Fold in one frame's registration: its yaw moved ``innovation_rad`` from the
-        prediction, and its variance fell from ``prior_var`` to ``posterior_var``.
-
-        The scan-only yaw measurement and its variance are recovered from that shrinkage; the
-        variance is then inflated for the frames that share its map (``decorrelation_s``).
+    def correct(self, scan: ScanYaw | None) -> None:
+        """Fold in one frame's registration as its scan-only yaw measurement (``scan_yaw``:
+        recovered from how far the registration moved the yaw and how much it shrank its
+        variance; None when the scan added nothing). Its variance is inflated for the frames
+        that share its map (``decorrelation_s``).
         """
-        scan = scan_yaw(prior_var, posterior_var, innovation_rad)
         if scan is None:
             return
         scan_var = scan.decorrelated_variance(self._decorrelation_s, self._dt_s)
@@ -255,13 +253,12 @@ class MotionPriorEstimator:
         (``map_age``) into the map-age fit, whose bias then replaces the filter's once sure."""
         prior_var, posterior_var = prior.match_covariance[2, 2], float(covariance[2, 2])
         innovation = float(wrap_angle(registered_delta[2] - prior.delta[2]))
-        if self.map_age is not None and map_age is not None:
-            scan = scan_yaw(prior_var, posterior_var, innovation)
-            if scan is not None:
-                scan_yaw_rad = registered_yaw_rad - innovation + scan.innovation_rad
-                offset = scan_yaw_rad - prior.gyro_yaw_rad
-                self.map_age.add(prior.stamp_s, offset, scan, prior.dt_s, map_age)
-        self.heading.correct(prior_var, posterior_var, innovation)
+        scan = scan_yaw(prior_var, posterior_var, innovation)
+        if self.map_age is not None and map_age is not None and scan is not None:
+            scan_yaw_rad = registered_yaw_rad - innovation + scan.innovation_rad
+            offset = scan_yaw_rad - prior.gyro_yaw_rad
+            self.map_age.add(prior.stamp_s, offset, scan, prior.dt_s, map_age)
+        self.heading.correct(scan)
         bias = None if self.map_age is None else self.map_age.bias_radps
         if bias is not None:
             self.heading.bias_radps = bias
