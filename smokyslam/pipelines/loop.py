@@ -21,27 +21,21 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from smokyslam.backends.slam import SlamBackend
 from smokyslam.errors import SmokySlamError
 from smokyslam.evaluation.gyro_bias import GyroTally
-from smokyslam.frontends.camera.metric import CameraStep, MetricCameraSteps
+from smokyslam.frontends.camera.metric import CameraStep
 from smokyslam.frontends.camera.result import CameraOdometryResult
-from smokyslam.frontends.radar.frontend import RadarFrame, RadarFrontend
-from smokyslam.fusion.trust import TrustModel
-from smokyslam.localize.stage import LocalizationTrack, Localizer
-from smokyslam.mapping.online import OnlineMaps
-from smokyslam.pipelines.camera_stage import CameraStage
+from smokyslam.frontends.radar.frontend import RadarFrame
 from smokyslam.pipelines.health import RunHealth
 from smokyslam.pipelines.ordering import InOrder, StageClock
+from smokyslam.pipelines.stages import RunEstimate, Stages
 from smokyslam.pipelines.worker_process import DeferredCtrlC
-from smokyslam.smoke import SmokeEmulator
-from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan, StepPairs
-from smokyslam.viz.recorder import Due, FrameRecord, Recorder, RunSnapshot
+from smokyslam.types import CameraFrame, Frame, ImuSample, RadarScan
+from smokyslam.viz.recorder import Due, FrameRecord, RunSnapshot
 
 logger = logging.getLogger(__name__)
 
@@ -51,72 +45,6 @@ ProgressCallback = Callable[[float, str], None]
 MAX_LAG = 300
 """Frames waiting for the camera worker before reading waits for it too (a few seconds of
 log: reading and radar go on while the worker starts)."""
-
-
-@dataclass
-class Stages:
-    """The stages of one run. ``radar``: the radar frontend (None: no radar). ``camera``: the
-    camera stage (None: no camera). ``camera_steps``: set when the camera carries the
-    trajectory (camera-only); otherwise camera results feed the backend's camera factors.
-    ``visual_map``: camera keyframes feed the visual map. ``trust``: the camera's trust from
-    its measured smoke, per visual keyframe. ``localizer``: Monte Carlo localization in a
-    saved map, fed every radar frame (None: no localization)."""
-
-    smoke: SmokeEmulator
-    radar: RadarFrontend | None
-    camera: CameraStage | None
-    camera_steps: MetricCameraSteps | None
-    backend: SlamBackend
-    maps: OnlineMaps
-    recorder: Recorder
-    visual_map: bool
-    trust: TrustModel
-    localizer: Localizer | None = None
-
-    @property
-    def streams(self) -> tuple[str, ...]:
-        """The sensor streams these stages use (the reader decodes nothing else)."""
-        streams = ("radar", "imu") if self.radar is not None else ()
-        if self.camera is not None:
-            streams += ("camera_image",)
-            if self.smoke.needs_depth:  # haze needs each pixel's depth
-                streams += ("camera_depth",)
-        return streams
-
-
-@dataclass
-class RunEstimate:
-    """What the loop estimated, in its own map frame (first keyframe at the origin).
-
-    stamps_s (N,), poses_world_base (N, 3), lost (N,), camera_weight (N,): one per primary
-    frame (the camera's gate weight there). keyframe_stamps_s (K,), keyframe_camera (K,): one
-    per keyframe (a camera factor ends there). frames_per_s: frames over the stages' busy
-    time. maps: the online maps, to snapshot or render in any
-    frame. graph: the backend's numbers (factors, keyframes, camera pairs, stage seconds), as
-    ``metrics.json`` holds them. extra: the source's own numbers (``odometry`` in metrics).
-    health: the odometry's and the camera's health over time. localization: the localizer's
-    track, in the saved map's frame (None without a localizer). step_pairs: the radar and
-    camera steps of the keyframe pairs (None without camera factors), for evaluation. gyro:
-    the gyro's yaw rate integrated over the run (None without IMU samples), for evaluation.
-    """
-
-    stamps_s: np.ndarray
-    poses_world_base: np.ndarray
-    lost: np.ndarray
-    camera_weight: np.ndarray
-    keyframe_stamps_s: np.ndarray
-    keyframe_camera: np.ndarray
-    frames_per_s: float
-    maps: OnlineMaps
-    graph: dict[str, Any] = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
-    health: RunHealth = field(default_factory=RunHealth)
-    localization: LocalizationTrack | None = None
-    step_pairs: StepPairs | None = None
-    gyro: GyroTally | None = None
-    interrupted: bool = False
-    failure: str | None = None
-    """Why a stage stopped the run part-way (None: it read every frame or was stopped)."""
 
 
 def _never() -> bool:

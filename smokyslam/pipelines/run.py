@@ -23,7 +23,7 @@ from smokyslam.evaluation.step_errors import step_errors
 from smokyslam.frontends.readers.base import LogReader
 from smokyslam.frontends.readers.registry import config_for_log, open_log
 from smokyslam.outputs import OutputFolder
-from smokyslam.pipelines.loop import RunEstimate, RunLoop
+from smokyslam.pipelines.loop import RunLoop
 from smokyslam.pipelines.run_outputs import (
     record_results,
     write_figures,
@@ -31,6 +31,7 @@ from smokyslam.pipelines.run_outputs import (
     write_trajectory,
 )
 from smokyslam.pipelines.sources import SOURCES, build_stages, get_source
+from smokyslam.pipelines.stages import RunEstimate
 from smokyslam.pipelines.worker_process import DeferredCtrlC
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
 from smokyslam.viz.recorder import NullRecorder, Recorder, RecordingSetup, open_recorder

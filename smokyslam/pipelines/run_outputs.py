@@ -21,7 +21,7 @@ from smokyslam.frontends.readers.base import LogReader
 from smokyslam.fusion.fuse import FUSED_MAP
 from smokyslam.fusion.trust import TRUST_SUFFIX, save_trust
 from smokyslam.outputs import OutputFolder
-from smokyslam.pipelines.loop import RunEstimate
+from smokyslam.pipelines.stages import RunEstimate
 from smokyslam.types import GroundTruthMap, GroundTruthTrajectory
 from smokyslam.viz.recorder import Recorder
 

@@ -29,7 +29,7 @@ from smokyslam.frontends.readers.base import LogReader
 from smokyslam.fusion.fuser import MapFuser, get_trust_model
 from smokyslam.mapping.online import OnlineMaps
 from smokyslam.pipelines.camera_stage import CameraStage
-from smokyslam.pipelines.loop import Stages
+from smokyslam.pipelines.stages import Stages
 from smokyslam.smoke import SmokeEmulator
 from smokyslam.upsample.online import DenseRefresher
 from smokyslam.viz.recorder import Recorder
