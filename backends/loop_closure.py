@@ -4,8 +4,11 @@ Candidates are old keyframes (at least ``min_index_gap`` back) within ``search_r
 current estimate. The current submap is aligned to each by a Huber-weighted point-to-point ICP
 started from the odometry guess; a match is kept only if enough points agree, the residual is
 small and ICP did not move far from the guess. A near match (ICP moved the guess little) needs
-fewer agreeing points than a far one. Even so a wrong match can slip through, so the caller
-adds the result with a robust kernel.
+fewer agreeing points than a far one. A far match must also be the best fit around it: in an
+aisle or corridor of repeating structure ICP from a drifted guess stops at whichever copy it
+reaches first, so ICP is restarted from a ring of shifts around the match, and the match is
+dropped if an optimum elsewhere fits as well (:func:`best_rival`). Even so a wrong match can
+slip through, so the caller adds the result with a robust kernel.
 """
 
 from __future__ import annotations
@@ -102,6 +105,45 @@ def icp_2d(
     return IcpResult(delta, covariance, float(inlier.mean()), rms)
 
 
+RIVAL_DIRECTIONS = 8
+"""Shifts per ring radius from which ICP is restarted around a far match."""
+
+
+def fit_score(delta: np.ndarray, source_xy: np.ndarray, target_tree: cKDTree, sigma_m: float):
+    """Mean Gaussian likelihood of the (N, 2) source points moved by ``delta`` (3,) against
+    their nearest target points, at point distance scale ``sigma_m``: 1 for a perfect fit.
+    Sharper than the inlier fraction, whose 0.3 m gate counts a slid copy's points as well."""
+    distance, _ = target_tree.query(transform_points_2d(delta, source_xy))
+    return float(np.mean(np.exp(-0.5 * (distance / sigma_m) ** 2)))
+
+
+def best_rival(
+    source_xy: np.ndarray,
+    target_tree: cKDTree,
+    match: np.ndarray,
+    radii_m: tuple[float, ...],
+    inlier_distance_m: float,
+    sigma_m: float,
+) -> float:
+    """The best :func:`fit_score` of an ICP optimum more than ``inlier_distance_m`` from
+    ``match`` (3,), over ICP restarted from ``RIVAL_DIRECTIONS`` shifts of each radius around
+    it (0 if every restart comes back)."""
+    angles = np.arange(RIVAL_DIRECTIONS) * (2.0 * np.pi / RIVAL_DIRECTIONS)
+    shifts = np.concatenate(
+        [r * np.column_stack([np.cos(angles), np.sin(angles)]) for r in radii_m]
+    )
+    best = 0.0
+    for shift in shifts:
+        start = match + np.r_[shift, 0.0]
+        rival = icp_2d(source_xy, target_tree, start, inlier_distance_m)
+        if (
+            np.isfinite(rival.rms_m)
+            and np.hypot(*(rival.delta[:2] - match[:2])) > inlier_distance_m
+        ):
+            best = max(best, fit_score(rival.delta, source_xy, target_tree, sigma_m))
+    return best
+
+
 @dataclass(frozen=True)
 class LoopClosure:
     """A verified relative pose between an old keyframe and the current one.
@@ -134,6 +176,8 @@ class LoopCloser:
         min_spacing: int,
         floor_sigmas: tuple[float, float, float],
         near: tuple[float, float],
+        rival_radii_m: tuple[float, ...] = (),
+        rival_sigma_m: float = 0.05,
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
@@ -141,7 +185,9 @@ class LoopCloser:
         ICP is overconfident on sparse radar points). near: (metres, inlier fraction) a match
         that shifts the guess at most that far needs only that inlier fraction. Where the
         estimate was already right, a partial overlap rarely aligns wrongly; a far correction on
-        partial overlap is as often an aisle or corridor slid along as a real one."""
+        partial overlap is as often an aisle or corridor slid along as a real one.
+        rival_radii_m, rival_sigma_m: the far match's rival search (:func:`best_rival`); empty
+        radii: none."""
         self._search_radius_m = search_radius_m
         self._min_index_gap = min_index_gap
         self._max_candidates = max_candidates
@@ -153,6 +199,8 @@ class LoopCloser:
         self._min_spacing = min_spacing
         self._floor_sigmas = np.asarray(floor_sigmas, dtype=float)
         self._near_correction_m, self._near_min_inlier_fraction = near
+        self._rival_radii_m = tuple(rival_radii_m)
+        self._rival_sigma_m = rival_sigma_m
         self._trees: dict[int, cKDTree] = {}
         self._last_closure = -(10**9)
 
@@ -188,6 +236,10 @@ class LoopCloser:
         if best is None:
             return None
         old_index, result = best
+        guess = se2_between(poses[old_index], poses[index])
+        if self._ambiguous(submap_xy, self._trees[old_index], result, guess):
+            logger.debug("loop closure %d -> %d dropped: a rival fits as well", old_index, index)
+            return None
         covariance = floored_covariance(
             tangent_covariance(result.delta, result.covariance), self._floor_sigmas
         )
@@ -196,9 +248,26 @@ class LoopCloser:
             old_index, index, result.delta, covariance, result.inlier_fraction, result.rms_m
         )
 
+    def _ambiguous(
+        self, submap_xy: np.ndarray, tree: cKDTree, result: IcpResult, guess: np.ndarray
+    ) -> bool:
+        """Whether a far match has a rival optimum around it that fits at least as well."""
+        if not self._rival_radii_m or _shift_m(guess, result.delta) <= self._near_correction_m:
+            return False
+        own = fit_score(result.delta, submap_xy, tree, self._rival_sigma_m)
+        rival = best_rival(
+            submap_xy,
+            tree,
+            result.delta,
+            self._rival_radii_m,
+            self._inlier_distance_m,
+            self._rival_sigma_m,
+        )
+        return rival >= own
+
     def _verified(self, result: IcpResult, guess: np.ndarray) -> bool:
         correction = se2_between(guess, result.delta)
-        shift_m = float(np.hypot(correction[0], correction[1]))
+        shift_m = _shift_m(guess, result.delta)
         min_inliers = (
             self._near_min_inlier_fraction
             if shift_m <= self._near_correction_m
@@ -210,6 +279,12 @@ class LoopCloser:
             and shift_m <= self._max_correction[0]
             and abs(correction[2]) <= self._max_correction[1]
         )
+
+
+def _shift_m(guess: np.ndarray, delta: np.ndarray) -> float:
+    """How far (m) ICP moved the keyframe from the odometry ``guess`` to ``delta``."""
+    correction = se2_between(guess, delta)
+    return float(np.hypot(correction[0], correction[1]))
 
 
 def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
@@ -226,4 +301,6 @@ def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
         min_spacing=config.min_spacing,
         floor_sigmas=config.floor_sigmas,
         near=(config.near_correction_m, config.near_min_inlier_fraction),
+        rival_radii_m=config.rival_radii_m,
+        rival_sigma_m=config.rival_sigma_m,
     )
