@@ -163,7 +163,7 @@ def aisle_points() -> np.ndarray:
         [np.column_stack([edge, np.full_like(edge, side)]) for side in (-0.1, 0.1)]
         + [np.column_stack([np.full_like(edge, side), edge]) for side in (-0.1, 0.1)]
     )
-    posts = [square + [x0, y] for x0 in np.arange(0.5, 40.0, 1.0) for y in (0.8, 2.2)]
+    posts = [square + np.array([x0, y]) for x0 in np.arange(0.5, 40.0, 1.0) for y in (0.8, 2.2)]
     return np.concatenate(walls + posts)
 
 
