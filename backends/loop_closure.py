@@ -109,7 +109,9 @@ RIVAL_DIRECTIONS = 8
 """Shifts per ring radius from which ICP is restarted around a far match."""
 
 
-def fit_score(delta: np.ndarray, source_xy: np.ndarray, target_tree: cKDTree, sigma_m: float):
+def fit_score(
+    delta: np.ndarray, source_xy: np.ndarray, target_tree: cKDTree, sigma_m: float
+) -> float:
     """Mean Gaussian likelihood of the (N, 2) source points moved by ``delta`` (3,) against
     their nearest target points, at point distance scale ``sigma_m``: 1 for a perfect fit.
     Sharper than the inlier fraction, whose 0.3 m gate counts a slid copy's points as well."""
