@@ -178,8 +178,8 @@ class LoopCloser:
         min_spacing: int,
         floor_sigmas: tuple[float, float, float],
         near: tuple[float, float],
-        rival_radii_m: tuple[float, ...] = (),
-        rival_sigma_m: float = 0.05,
+        rival_radii_m: tuple[float, ...],
+        rival_sigma_m: float,
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
@@ -233,13 +233,15 @@ class LoopCloser:
         for old_index in near[: self._max_candidates]:
             guess = se2_between(poses[old_index], poses[index])
             result = icp_2d(submap_xy, self._trees[old_index], guess, self._inlier_distance_m)
-            if self._verified(result, guess) and (best is None or result.rms_m < best[1].rms_m):
-                best = (int(old_index), result)
+            correction = se2_between(guess, result.delta)
+            if self._verified(result, correction) and (
+                best is None or result.rms_m < best[1].rms_m
+            ):
+                best = (int(old_index), result, correction)
         if best is None:
             return None
-        old_index, result = best
-        guess = se2_between(poses[old_index], poses[index])
-        if self._ambiguous(submap_xy, self._trees[old_index], result, guess):
+        old_index, result, correction = best
+        if self._ambiguous(submap_xy, self._trees[old_index], result, correction):
             logger.debug("loop closure %d -> %d dropped: a rival fits as well", old_index, index)
             return None
         covariance = floored_covariance(
@@ -251,10 +253,11 @@ class LoopCloser:
         )
 
     def _ambiguous(
-        self, submap_xy: np.ndarray, tree: cKDTree, result: IcpResult, guess: np.ndarray
+        self, submap_xy: np.ndarray, tree: cKDTree, result: IcpResult, correction: np.ndarray
     ) -> bool:
-        """Whether a far match has a rival optimum around it that fits at least as well."""
-        if not self._rival_radii_m or _shift_m(guess, result.delta) <= self._near_correction_m:
+        """Whether a far match (``correction``: its move from the odometry guess) has a rival
+        optimum around it that fits at least as well."""
+        if not self._rival_radii_m or _shift_m(correction) <= self._near_correction_m:
             return False
         own = fit_score(result.delta, submap_xy, tree, self._rival_sigma_m)
         rival = best_rival(
@@ -267,9 +270,8 @@ class LoopCloser:
         )
         return rival >= own
 
-    def _verified(self, result: IcpResult, guess: np.ndarray) -> bool:
-        correction = se2_between(guess, result.delta)
-        shift_m = _shift_m(guess, result.delta)
+    def _verified(self, result: IcpResult, correction: np.ndarray) -> bool:
+        shift_m = _shift_m(correction)
         min_inliers = (
             self._near_min_inlier_fraction
             if shift_m <= self._near_correction_m
@@ -283,9 +285,9 @@ class LoopCloser:
         )
 
 
-def _shift_m(guess: np.ndarray, delta: np.ndarray) -> float:
-    """How far (m) ICP moved the keyframe from the odometry ``guess`` to ``delta``."""
-    correction = se2_between(guess, delta)
+def _shift_m(correction: np.ndarray) -> float:
+    """How far (m) ICP moved the keyframe from the odometry guess (``correction``: the match
+    in the guess's frame)."""
     return float(np.hypot(correction[0], correction[1]))
 
 
