@@ -125,18 +125,23 @@ class Keyframer:
         self._delta, self._covariance = np.zeros(3), np.zeros((3, 3))
         return keyframe
 
-    def submap(self, voxel_m: float) -> np.ndarray:
-        """(N, 2) points of the recent frames in the latest frame's base_link, metres; with
-        ``voxel_m`` > 0 one point (the first) per square voxel of that side."""
+    def submap(self, voxel_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """(points, origins), each (N, 2) in the latest frame's base_link, metres: the recent
+        frames' points, and where the sensor was when it saw each; with ``voxel_m`` > 0 one
+        point (the first) per square voxel of that side."""
         if not self._recent:
-            return np.zeros((0, 2))
+            return np.zeros((0, 2)), np.zeros((0, 2))
         latest = self._recent[-1][0]
-        parts = [
-            transform_points_2d(se2_between(latest, pose), points) for pose, points in self._recent
-        ]
-        points = np.concatenate(parts)
-        if voxel_m <= 0.0 or len(points) == 0:
-            return points
-        cells = np.floor(points / voxel_m).astype(np.int64)
+        points, origins = [], []
+        for pose, frame_points in self._recent:
+            in_latest = se2_between(latest, pose)
+            points.append(transform_points_2d(in_latest, frame_points))
+            sensor = se2_compose(in_latest, self._mount)[:2]
+            origins.append(np.broadcast_to(sensor, (len(frame_points), 2)))
+        xy, origin_xy = np.concatenate(points), np.concatenate(origins)
+        if voxel_m <= 0.0 or len(xy) == 0:
+            return xy, origin_xy
+        cells = np.floor(xy / voxel_m).astype(np.int64)
         _, first = np.unique(cells, axis=0, return_index=True)
-        return points[np.sort(first)]
+        keep = np.sort(first)
+        return xy[keep], origin_xy[keep]

@@ -273,8 +273,8 @@ class SlamBackend:
     def _close_loop(self, index: int) -> None:
         if self._loops is None or index % self._slam.loop_check_every:
             return
-        submap = self._keyframer.submap(self._slam.submap_voxel_m)
-        closure = self._loops.check(index, self._graph.estimates(), submap)
+        submap_xy, origins_xy = self._keyframer.submap(self._slam.submap_voxel_m)
+        closure = self._loops.check(index, self._graph.estimates(), submap_xy, origins_xy)
         if closure is None:
             return
         self._graph.add_between(

@@ -2,9 +2,9 @@
 recent keyframes, wrong places and large corrections."""
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from smokyslam.backends.loop_closure import get_loop_closer, icp_2d
+from smokyslam.backends.loop_closure import get_loop_closer
+from smokyslam.backends.scan_match import Scan, icp_2d
 from smokyslam.config import LoopClosureConfig
 from smokyslam.geometry import se2_between, se2_compose, se2_inverse, transform_points_2d
 
@@ -52,8 +52,8 @@ def test_icp_recovers_the_relative_pose_from_a_rough_guess():
     target_pose, source_pose = np.array([5.0, 3.0, 0.3]), np.array([6.0, 3.6, -0.2])
     truth = se2_between(target_pose, source_pose)
     guess = se2_compose(truth, [0.4, -0.3, 0.15])
-    tree = cKDTree(submap(target_pose, rng, count=600))
-    result = icp_2d(submap(source_pose, rng), tree, guess)
+    target = Scan(submap(target_pose, rng, count=600))
+    result = icp_2d(Scan(submap(source_pose, rng)), target, guess)
     error = se2_between(truth, result.delta)
     assert np.hypot(error[0], error[1]) < 0.02
     assert abs(error[2]) < 0.005
@@ -198,3 +198,40 @@ def test_a_far_match_onto_a_repeating_copy_is_dropped():
     closure = closer.check(39, poses, submap(old, rng))
     assert closure is not None
     np.testing.assert_allclose(closure.delta, [0.0, 0.0, 0.0], atol=0.05)
+
+
+def test_a_match_of_a_racks_two_faces_is_refused():
+    """A rack 1 m deep, seen once from the aisle south of it and once from the aisle north of
+    it, with the estimate 1 m south of the truth: the north face then lies on the south face,
+    and the end wall both aisles see holds the rest, so without normals ICP takes that match,
+    a metre wrong. With oriented normals the two faces point apart and do not correspond, so
+    no closure is made. Simulated warehouses showed this: every closure there more than
+    0.3 m wrong laid one side of the racks onto the other."""
+    rng = np.random.default_rng(7)
+
+    def wall(a, b):
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        n = max(int(np.linalg.norm(b - a) / 0.05), 2)
+        return a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+
+    end_wall = wall((11.0, -3.0), (11.0, 4.5))
+    south_view = np.concatenate([wall((0, 0), (10, 0)), wall((0, -2.5), (10, -2.5)), end_wall])
+    north_view = np.concatenate([wall((0, 1), (10, 1)), wall((0, 3.5), (10, 3.5)), end_wall])
+    south, north = np.array([6.0, -1.25, 0.0]), np.array([6.0, 2.25, 0.0])
+
+    def seen_from(pose, points):
+        local = transform_points_2d(se2_inverse(pose), points)
+        local = local + rng.normal(0.0, 0.03, local.shape)
+        return local, np.zeros_like(local)  # every point seen from the keyframe's origin
+
+    poses = np.array([south] * 40)
+    poses[39] = north - [0.0, 1.0, 0.0]  # odometry drifted a metre south
+    for normal_radius_m, taken in [(None, True), (1.0, False)]:
+        config = LoopClosureConfig(min_index_gap=30, normal_radius_m=normal_radius_m)
+        closer = get_loop_closer(config)
+        closer.check(0, south[None], *seen_from(south, south_view))
+        closure = closer.check(39, poses, *seen_from(north, north_view))
+        assert (closure is not None) is taken
+        if taken:  # the faces laid onto each other: a metre south of the truth
+            error = se2_between(se2_between(south, north), closure.delta)
+            assert abs(error[1] + 1.0) < 0.1

@@ -107,9 +107,12 @@ def test_keyframer_gate_steps_and_frame_offsets_rebuild_the_trajectory():
         np.array(keyframe_poses)[keyframer.frame_keyframe], np.array(keyframer.frame_offset)
     )
     np.testing.assert_allclose(rebuilt, np.array(truth), atol=1e-12)
-    # Submap: the recent frames' points in the latest base_link; the newest one lies as seen.
-    submap = keyframer.submap(voxel_m=0.0)
+    # Submap: the recent frames' points in the latest base_link; the newest one lies as seen,
+    # seen from the radar's mount.
+    submap, origins = keyframer.submap(voxel_m=0.0)
     np.testing.assert_allclose(submap[-3:], SCAN_XY + MOUNT_RADAR[:2])
+    np.testing.assert_allclose(origins[-3:], np.tile(MOUNT_RADAR[:2], (3, 1)))
+    assert origins.shape == submap.shape
 
 
 def _camera_result(stamp_s: float, pose: np.ndarray, noise: float = 0.0, map_id: int = 0):

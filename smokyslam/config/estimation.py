@@ -196,6 +196,12 @@ class LoopClosureConfig(_Section):
     rival_sigma_m: float = Field(
         0.05, gt=0.0, description="point distance scale of the fit that rival optima are ranked by"
     )
+    normal_radius_m: float | None = Field(
+        1.0,
+        gt=0.0,
+        description="submap points get the normal of their neighbours this near, turned to the"
+        " sensor, and match only points seen from the same side; null: off",
+    )
     # Sparse radar submaps align to a few cm and degrees: measured closures were off by up to
     # 0.09 m and 4 deg, so a 0.01 rad floor let one bad closure bend a whole walk.
     floor_sigmas: tuple[float, float, float] = Field(
