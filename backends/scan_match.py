@@ -20,7 +20,7 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from smokyslam.geometry import transform_points_2d, wrap_angle
+from smokyslam.geometry import line_fit_2d, rotation_2d, transform_points_2d, wrap_angle
 
 NORMAL_NEIGHBOURS = 48
 """Nearest points (the point itself included) whose spread gives a point's normal."""
@@ -50,19 +50,8 @@ def oriented_normals(
     k = min(NORMAL_NEIGHBOURS, len(xy))
     distance, index = cKDTree(xy).query(xy, k=k, distance_upper_bound=radius_m)
     near = np.isfinite(distance)
-    weight = near.astype(float)
-    neighbours = xy[np.where(near, index, 0)]  # (N, k, 2)
-    count = weight.sum(axis=1)
-    mean = np.einsum("nk,nkd->nd", weight, neighbours) / count[:, None]
-    spread = (neighbours - mean[:, None, :]) * weight[..., None]
-    cxx = np.einsum("nk,nk->n", spread[..., 0], spread[..., 0])
-    cyy = np.einsum("nk,nk->n", spread[..., 1], spread[..., 1])
-    cxy = np.einsum("nk,nk->n", spread[..., 0], spread[..., 1])
-    half_trace = 0.5 * (cxx + cyy)
-    root = np.sqrt(np.maximum(0.25 * (cxx - cyy) ** 2 + cxy**2, 0.0))
-    line_like = (count >= 3) & (half_trace - root <= MAX_FLATNESS * (half_trace + root))
-    along = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)  # the major axis of the spread
-    normals = np.column_stack([-np.sin(along), np.cos(along)])
+    _, normals, across, along = line_fit_2d(xy[np.where(near, index, 0)], near.astype(float))
+    line_like = (near.sum(axis=1) >= 3) & (across <= MAX_FLATNESS * along)
     towards = np.einsum("nd,nd->n", normals, np.asarray(origins_xy, dtype=float) - xy)
     normals[towards < 0.0] *= -1.0
     normals[~line_like] = 0.0
@@ -93,10 +82,14 @@ class Scan:
         """(N, 2) oriented unit normals, zero rows where none."""
         return oriented_normals(self.xy, self._origins_xy, self._normal_radius_m)
 
+    @cached_property
+    def _padded_normals(self) -> np.ndarray:
+        """(N + 1, 2) the normals and a zero row for the index a missed query returns."""
+        return np.vstack([self.normals, np.zeros((1, 2))])
+
     def moved(self, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(points, normals) moved by ``delta`` (3,) ``[x_m, y_m, yaw_rad]``."""
-        c, s = np.cos(delta[2]), np.sin(delta[2])
-        return transform_points_2d(delta, self.xy), self.normals @ np.array([[c, s], [-s, c]])
+        return transform_points_2d(delta, self.xy), self.normals @ rotation_2d(delta[2]).T
 
     def match(
         self, xy: np.ndarray, normals: np.ndarray, upper_m: float = np.inf
@@ -105,7 +98,7 @@ class Scan:
         to its nearest point of this scan whose normal points less than 90 degrees away (or
         either has none); inf and ``len(self.xy)`` where there is none within ``upper_m``."""
         distance, index = self.tree.query(xy, distance_upper_bound=upper_m)
-        padded = np.vstack([self.normals, np.zeros((1, 2))])
+        padded = self._padded_normals
         clash = np.einsum("md,md->m", padded[index], normals) < 0.0
         if clash.any():  # the nearest point faces the other way: the nearest that does not
             k = min(MATCH_CANDIDATES, len(self.xy))

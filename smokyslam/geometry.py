@@ -142,6 +142,26 @@ def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
     return points_xy @ rotation_2d(pose[2]).T + np.asarray(pose[:2], dtype=float)
 
 
+def line_fit_2d(
+    neighbours_xy: np.ndarray, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Lines fitted by 2D PCA to N sets of k points, (N, k, 2), each point weighted by (N, k)
+    ``weights`` (1 or 0 to leave a neighbour out; None: all 1). Returns (centroids (N, 2),
+    unit normals (N, 2) across each set's major axis, smaller and larger eigenvalues (N,) of
+    its scatter matrix, the summed squared spread across and along the line), in closed form."""
+    if weights is None:
+        weights = np.ones(neighbours_xy.shape[:2])
+    centroid = np.sum(weights[..., None] * neighbours_xy, axis=1) / np.sum(weights, axis=1)[:, None]
+    local = neighbours_xy - centroid[:, None, :]
+    sxx = np.sum(weights * local[..., 0] ** 2, axis=1)
+    syy = np.sum(weights * local[..., 1] ** 2, axis=1)
+    sxy = np.sum(weights * local[..., 0] * local[..., 1], axis=1)
+    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # the major axis
+    normal = np.stack([-np.sin(angle), np.cos(angle)], axis=1)
+    root = np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+    return centroid, normal, 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
+
+
 def interpolate_se2(
     stamps_s: np.ndarray, poses: np.ndarray, query_s: np.ndarray | float
 ) -> np.ndarray:

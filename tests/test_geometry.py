@@ -116,3 +116,21 @@ def test_se2_fuse_averages_headings_across_the_wrap():
     a, b = np.array([0.0, 0.0, np.pi - 0.02]), np.array([0.0, 0.0, -np.pi + 0.02])
     fused, _ = se2_fuse(a, cov, b, cov)
     assert abs(abs(fused[2]) - np.pi) < 1e-9  # not 0, the naive mean of the two numbers
+
+
+def test_line_fit_2d_finds_the_normal_and_spreads_and_leaves_out_zero_weights():
+    x = np.linspace(-1.0, 1.0, 21)
+    line = np.column_stack([x, 0.5 * x + 2.0])  # a line at atan(0.5) through (0, 2)
+    outlier = np.array([[0.0, 9.0]])
+    sets = np.stack([np.vstack([line, outlier])] * 2)  # (2, 22, 2)
+    weights = np.ones((2, 22))
+    weights[1, -1] = 0.0  # the second set leaves the outlier out
+    centroid, normal, across, along = g.line_fit_2d(sets, weights)
+    expected = np.array([-np.sin(np.arctan(0.5)), np.cos(np.arctan(0.5))])
+    np.testing.assert_allclose(np.abs(normal[1] @ expected), 1.0, atol=1e-12)
+    np.testing.assert_allclose(centroid[1], [0.0, 2.0], atol=1e-12)
+    assert across[1] < 1e-12
+    # Along the line: the summed squared distance from the centroid, 21 points to +-1 m.
+    np.testing.assert_allclose(along[1], np.sum(x**2) * 1.25, rtol=1e-12)
+    assert across[0] > 1.0  # the outlier 7 m off the line spreads the first set across it
+    np.testing.assert_allclose(g.line_fit_2d(sets[:1])[2], across[:1])

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from smokyslam.geometry import line_fit_2d
+
 
 @dataclass
 class LineMatches:
@@ -101,16 +103,7 @@ class LocalMap:
         k = min(self._neighbors, len(self.points_xy))
         distance, index = self.tree.query(query_xy, k=k)
         distance, index = distance.reshape(len(query_xy), k), index.reshape(len(query_xy), k)
-        neighbours = self.points_xy[index]  # (N, k, 2)
-        centroid = neighbours.mean(axis=1)
-        local = neighbours - centroid[:, None, :]
-        sxx = np.sum(local[:, :, 0] ** 2, axis=1)
-        syy = np.sum(local[:, :, 1] ** 2, axis=1)
-        sxy = np.sum(local[:, :, 0] * local[:, :, 1], axis=1)
-        # Closed-form 2x2 eigen-decomposition: major axis angle and the smaller eigenvalue.
-        angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-        normal = np.stack([-np.sin(angle), np.cos(angle)], axis=1)
-        smallest = 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+        centroid, normal, smallest, _ = line_fit_2d(self.points_xy[index])
         line_var = np.maximum(smallest, 0.0) / max(k - 2, 1) / k
         return LineMatches(
             distance[:, 0] <= max_distance_m,
