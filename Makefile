@@ -5,6 +5,9 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 DEMO_DIR ?= demo_output
 TORCH_VERSION := 2.13.0
+# pytest-xdist workers for `make test`; each test file runs whole in one worker, so its
+# module-scoped fixtures are built once.
+TEST_WORKERS ?= 2
 
 .PHONY: install demo test lint format bench clean system-deps
 
@@ -37,7 +40,7 @@ demo: install
 test: install
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint: install
 	$(VENV)/bin/ruff check .
