@@ -1,15 +1,27 @@
-"""Camera odometry turned into metric base_link between factors for radar keyframe pairs.
+"""Camera odometry turned into base_link between factors for radar keyframe pairs.
 
 The camera runs at its own rate, so its poses are kept for a while and interpolated at the
 two keyframe stamps (in the same camera map: never across a reinitialization or a lost frame).
-The relative motion, up to scale, is made metric by the windowed scale estimated against the
-radar step of the same pair, moved from the camera body to base_link through the mount, and
-weighted by the camera gate (tracking decides whether the camera takes part, image quality how
-much: ``camera_gate.py``). A factor that disagrees with the radar step beyond
-``consistency_chi2`` (with its own covariance, before the gate's inflation) is not added: a bad
-camera must never make the fused estimate worse than radar alone. The default gate is strict
-(chi2 3 on 3 dof): measured on simulated office walks, the camera's reported covariances were
-about 10x too small (NEES ~30) and looser gates let its slow drift into the heading.
+Each factor is weighted by the camera gate (tracking decides whether the camera takes part,
+image quality how much: ``camera_gate.py``) and checked against the radar step of the same
+pair: one that disagrees beyond ``consistency_chi2`` is not added, so a bad camera never makes
+the fused estimate worse than radar alone.
+
+What a factor holds (``slam.camera_factor``):
+
+- ``yaw`` (the default): the camera's turn between the keyframes, with its reported variance
+  scaled up to its measured errors (``slam.camera_yaw_variance_scale``). Its translation is the
+  radar's step, left free (:data:`FREE_TRANSLATION_VARIANCE_M2`), and the check compares the
+  turns alone (1 dof). Measured against the truth on simulated walks, the camera's metric
+  step is 27-69 mm off along the path (its scale) against the radar's 4-5 mm, while its turn is
+  0.24-0.54 deg off against the radar's 0.17-0.25 deg: its yaw is the part worth adding, and
+  needs no metric scale. Its reported yaw sigma (about 0.1 deg) is too small by about 4x.
+- ``pose``: the whole step, made metric by the windowed scale estimated against the radar
+  step, moved from the camera body to base_link through the mount, checked on 3 dof with its
+  own covariance. The camera's reported covariances are about 10x too small (NEES ~30), so this
+  gate is strict and passes about 30 % of pairs.
+
+The metric step is kept in both modes where the scale is known (``steps``, for evaluation).
 """
 
 from __future__ import annotations
@@ -33,6 +45,7 @@ from smokyslam.backends.scale import (
     get_scale_estimator,
     metric_relative_pose,
 )
+from smokyslam.errors import ConfigError
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.frontends.camera.pose import planar_from_camera
 from smokyslam.geometry import (
@@ -41,6 +54,7 @@ from smokyslam.geometry import (
     se2_compose,
     se2_conjugate,
     se2_inverse,
+    wrap_angle,
 )
 from smokyslam.types import StepPairs
 
@@ -51,6 +65,11 @@ logger = logging.getLogger(__name__)
 
 KEEP_S = 10.0
 """Seconds of camera poses kept for the keyframe pairs still waiting for the camera."""
+
+FREE_TRANSLATION_VARIANCE_M2 = 1e4
+"""Variance (m^2) of a yaw factor's translation: 100 m sigma, i.e. no constraint."""
+
+FACTOR_KINDS = ("yaw", "pose")
 
 
 @dataclass(frozen=True)
@@ -86,9 +105,11 @@ def camera_health(result: CameraOdometryResult) -> CameraHealth:
 class CameraFactorMaker:
     """Keeps recent camera poses; ``factor`` makes one keyframe pair's camera factor.
 
-    T_base_camera: (4, 4) mount (optical axes). covariance_scale: variance multiplier on the
-    camera's reported covariances. consistency_chi2: largest Mahalanobis distance (3 dof)
-    between camera and radar steps; larger is an outlier.
+    T_base_camera: (4, 4) mount (optical axes). kind: ``yaw`` or ``pose``, what a factor holds
+    (module docstring). covariance_scale: variance multiplier on the camera's reported
+    covariances (pose factors, and the metric steps kept); yaw_variance_scale: on its reported
+    yaw (yaw factors). consistency_chi2: largest Mahalanobis distance between camera and radar
+    steps (3 dof for pose factors, 1 for yaw factors); larger is an outlier.
     """
 
     def __init__(
@@ -98,12 +119,20 @@ class CameraFactorMaker:
         scale: ScaleEstimator | SharedScale,
         covariance_scale: float,
         consistency_chi2: float,
+        kind: str = "pose",
+        yaw_variance_scale: float = 1.0,
     ) -> None:
+        if kind not in FACTOR_KINDS:
+            raise ConfigError(
+                f"unknown camera factor kind '{kind}' (choose {', '.join(FACTOR_KINDS)})"
+            )
         self._mount = planar_from_camera(np.asarray(T_base_camera, dtype=float))
         self._gate = gate
         self._scale = scale
         self._covariance_scale = covariance_scale
         self._consistency_chi2 = consistency_chi2
+        self._kind = kind
+        self._yaw_variance_scale = yaw_variance_scale
         self._samples: deque[_Sample] = deque()
         self.weight = 0.0
         """Gate weight of the latest frame."""
@@ -184,13 +213,16 @@ class CameraFactorMaker:
             se2_compose(se2_inverse(self._mount), radar_delta), self._mount
         )
         estimate = self._scale.update(step[:2], radar_in_camera[:2])
+        if estimate is not None:
+            covariance = self._covariance_scale * (span[0].covariance + span[-1].covariance)
+            metric, metric_cov = metric_relative_pose(step, covariance, estimate)
+            delta, delta_cov = se2_conjugate(metric, metric_cov, self._mount)
+            self._steps.append((stamp_a_s, stamp_b_s, np.asarray(radar_delta, dtype=float), delta))
+        if self._kind == "yaw":
+            return self._yaw_factor(step[2], span, radar_delta, radar_covariance, weight)
         if estimate is None:
             self.outcomes["no_scale"] += 1
             return None
-        covariance = self._covariance_scale * (span[0].covariance + span[-1].covariance)
-        metric, metric_cov = metric_relative_pose(step, covariance, estimate)
-        delta, delta_cov = se2_conjugate(metric, metric_cov, self._mount)
-        self._steps.append((stamp_a_s, stamp_b_s, np.asarray(radar_delta, dtype=float), delta))
         innovation = se2_between(radar_delta, delta)
         # Checked with the camera's own covariance: a degraded camera is weighed less in the
         # graph, but not let in with larger disagreements.
@@ -201,6 +233,27 @@ class CameraFactorMaker:
             return None
         self.outcomes["used"] += 1
         return CameraFactor(delta, inflate_covariance(delta_cov, weight), weight)
+
+    def _yaw_factor(
+        self,
+        yaw_rad: float,
+        span: list[_Sample],
+        radar_delta: np.ndarray,
+        radar_covariance: np.ndarray,
+        weight: float,
+    ) -> CameraFactor | None:
+        """The camera's turn ``yaw_rad`` over ``span`` as a factor whose translation is the
+        radar's, left free; None when the turns disagree beyond the check."""
+        variance = self._yaw_variance_scale * (span[0].covariance[2, 2] + span[-1].covariance[2, 2])
+        innovation = float(wrap_angle(yaw_rad - radar_delta[2]))
+        if innovation**2 / (radar_covariance[2, 2] + variance) > self._consistency_chi2:
+            self.outcomes["inconsistent"] += 1
+            logger.debug("camera turn disagrees with radar by %.2f deg", np.degrees(innovation))
+            return None
+        self.outcomes["used"] += 1
+        delta = np.array([radar_delta[0], radar_delta[1], yaw_rad])
+        covariance = np.diag([FREE_TRANSLATION_VARIANCE_M2, FREE_TRANSLATION_VARIANCE_M2, variance])
+        return CameraFactor(delta, inflate_covariance(covariance, weight), weight)
 
     def _span(self, stamp_a_s: float, stamp_b_s: float) -> list[_Sample] | None:
         """The frames from the last one at or before ``stamp_a_s`` to the first one at or after
@@ -222,13 +275,17 @@ def get_camera_factor_maker(
     slam: SlamConfig,
     T_base_camera: np.ndarray,
     scale: ScaleEstimator | SharedScale | None = None,
+    kind: str | None = None,
 ) -> CameraFactorMaker:
     """The camera factor maker of the backend and slam config sections; ``scale``: one to
-    use instead of its own (``backend.scale``)."""
+    use instead of its own (``backend.scale``); ``kind``: what its factors hold, instead of
+    ``slam.camera_factor``."""
     return CameraFactorMaker(
         T_base_camera,
         get_camera_gate(backend.camera_gate),
         scale if scale is not None else get_scale_estimator(backend.scale),
         slam.camera_covariance_scale,
         slam.camera_consistency_chi2,
+        kind if kind is not None else slam.camera_factor,
+        slam.camera_yaw_variance_scale,
     )

@@ -13,6 +13,7 @@ from smokyslam.backends.camera_gate import get_camera_gate
 from smokyslam.backends.keyframes import KeyframeGate, Keyframer
 from smokyslam.backends.scale import get_scale_estimator
 from smokyslam.config import SmokySlamConfig, load_config
+from smokyslam.errors import ConfigError
 from smokyslam.frontends.camera.pose import camera_from_planar, planar_from_camera
 from smokyslam.frontends.camera.preprocess import ImageQuality
 from smokyslam.frontends.camera.result import CameraHealth, CameraOdometryResult, TrackingStatus
@@ -134,9 +135,10 @@ def _camera_result(stamp_s: float, pose: np.ndarray, noise: float = 0.0, map_id:
     )
 
 
-def _camera_scene(noise: float = 0.0, yaw_jump_at_s: float | None = None):
+def _camera_scene(noise: float = 0.0, yaw_jump_at_s: float | None = None, kind: str = "pose"):
     """A base_link arc (0.5 m/s, 0.2 rad/s), radar keyframes every 0.4 s, and a camera at
-    15 Hz seeing it in units 2.5x smaller, from 0.05 m ahead of base_link."""
+    15 Hz seeing it in units 2.5x smaller, from 0.05 m ahead of base_link; ``kind``: what its
+    factors hold (yaw ones with the camera's reported yaw variance scaled by 16)."""
     config = SmokySlamConfig()
     T_base_camera = np.eye(4)
     T_base_camera[:3, :3] = camera_from_planar(np.zeros(3))[:3, :3]
@@ -148,6 +150,8 @@ def _camera_scene(noise: float = 0.0, yaw_jump_at_s: float | None = None):
         get_scale_estimator(config.backend.scale),
         covariance_scale=1.0,
         consistency_chi2=11.34,
+        kind=kind,
+        yaw_variance_scale=16.0,
     )
 
     def base(t):
@@ -196,6 +200,33 @@ def test_a_noisy_camera_is_weighed_a_blinding_one_gated_an_inconsistent_one_refu
     assert outcomes[7][1] is None and outcomes[8][1] is not None
 
 
+def test_a_yaw_factor_holds_the_camera_turn_from_the_first_pair_and_leaves_translation_free():
+    maker, outcomes = _camera_scene(kind="yaw")
+    # No metric scale is needed: every pair gets a factor, the first one included.
+    assert all(f is not None for _, f in outcomes) and maker.outcomes["used"] == len(outcomes)
+    yaw_variance = 16.0 * 2 * 1e-6  # the two frames' reported 1e-6 rad^2, scaled
+    radar_covariance = np.diag([0.01, 0.01, 0.003]) ** 2
+    for true_delta, factor in outcomes:
+        assert factor.delta[2] == pytest.approx(true_delta[2], abs=1e-3)  # the camera's turn
+        np.testing.assert_array_equal(factor.delta[:2], true_delta[:2])  # the radar's step
+        np.testing.assert_allclose(np.diag(factor.covariance), [1e4, 1e4, yaw_variance])
+    # The scale is still learned, for the visual map and the kept metric steps.
+    assert maker.scale_m == pytest.approx(2.5, rel=1e-3)
+    assert (
+        len(maker.steps.stamps_s) == len(outcomes) - SmokySlamConfig().backend.scale.min_pairs + 1
+    )
+    # A turn that disagrees is refused on its own check (1 dof): the 0.2 rad jump's pair,
+    # 0.2 / sqrt(0.003^2 + 3.2e-5) = 31 sigma off.
+    maker, outcomes = _camera_scene(yaw_jump_at_s=3.1, kind="yaw")
+    assert [i for i, (_, f) in enumerate(outcomes) if f is None] == [7]
+    assert 0.2 / np.sqrt(radar_covariance[2, 2] + yaw_variance) > 30
+
+
+def test_an_unknown_camera_factor_kind_is_one_clear_error():
+    with pytest.raises(ConfigError, match="unknown camera factor kind 'roll'"):
+        _camera_scene(kind="roll")
+
+
 # ---------------------------------------------------------------- the pipeline on a log
 
 
@@ -235,7 +266,8 @@ def test_fused_run_writes_every_output(runs):
     # Both steps of every pair with a metric camera step, against the true motion: the
     # radar's a few millimetres per step, the camera's (checked before the gate) larger.
     steps = metrics["step_errors"]
-    assert steps["pairs"] >= factors["camera"]
+    # (a yaw factor needs no metric scale, so the first pairs have a factor and no step)
+    assert 10 < steps["pairs"] <= metrics["keyframes"] - 1
     assert steps["radar"]["translation_rms_m"] < 0.02
     assert steps["radar"]["translation_rms_m"] < steps["camera"]["translation_rms_m"] < 0.2
     assert 0.0 < steps["radar"]["yaw_rms_deg"] < 1.0

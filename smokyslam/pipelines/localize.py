@@ -135,8 +135,10 @@ def localize_reader(
         camera = None
         if stages.camera is not None:  # radar frames' steps, at the scale of SLAM's keyframes
             scale = SharedScale(stages.backend.camera_scale)
+            # Whole metric steps, as localization was measured with (docs/localization.md);
+            # SLAM's default yaw factors are not measured here yet.
             camera = get_camera_factor_maker(
-                config.backend, config.slam, extrinsics.T_base_camera, scale
+                config.backend, config.slam, extrinsics.T_base_camera, scale, kind="pose"
             )
         stages.localizer = Localizer(mcl, stages.radar.pose_base_radar, start, camera)
         estimate = RunLoop(stages, on_progress).run(reader.frames(stages.streams))
