@@ -70,6 +70,7 @@ FREE_TRANSLATION_VARIANCE_M2 = 1e4
 """Variance (m^2) of a yaw factor's translation: 100 m sigma, i.e. no constraint."""
 
 FACTOR_KINDS = ("yaw", "pose")
+"""What a camera factor may hold (``slam.camera_factor``): the turn alone, or the whole step."""
 
 
 @dataclass(frozen=True)
@@ -119,8 +120,8 @@ class CameraFactorMaker:
         scale: ScaleEstimator | SharedScale,
         covariance_scale: float,
         consistency_chi2: float,
-        kind: str = "pose",
-        yaw_variance_scale: float = 1.0,
+        kind: str,
+        yaw_variance_scale: float,
     ) -> None:
         if kind not in FACTOR_KINDS:
             raise ConfigError(
