@@ -29,7 +29,7 @@ from __future__ import annotations
 import logging
 from collections import Counter, deque
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from smokyslam.backends.scale import (
     get_scale_estimator,
     metric_relative_pose,
 )
+from smokyslam.config import CameraFactorKind
 from smokyslam.errors import ConfigError
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.frontends.camera.pose import planar_from_camera
@@ -69,7 +70,7 @@ KEEP_S = 10.0
 FREE_TRANSLATION_VARIANCE_M2 = 1e4
 """Variance (m^2) of a yaw factor's translation: 100 m sigma, i.e. no constraint."""
 
-FACTOR_KINDS = ("yaw", "pose")
+FACTOR_KINDS = get_args(CameraFactorKind)
 """What a camera factor may hold (``slam.camera_factor``): the turn alone, or the whole step."""
 
 

@@ -107,12 +107,14 @@ class LoopCloser:
         origins_xy: (N, 2) where the sensor was when it saw each, in the same frame (None:
         unknown, the points get no normals).
         """
+        submap_xy = np.asarray(submap_xy, dtype=float).reshape(-1, 2)
+        if len(submap_xy) < self._min_points:  # too few points to match or to keep
+            return None
         submap = Scan(submap_xy, origins_xy, self._normal_radius_m)
         closure = None
-        if len(submap.xy) >= self._min_points and index - self._last_closure >= self._min_spacing:
+        if index - self._last_closure >= self._min_spacing:
             closure = self._search(index, np.asarray(poses, dtype=float), submap)
-        if len(submap.xy) >= self._min_points:
-            self._submaps[index] = submap
+        self._submaps[index] = submap
         if closure is not None:
             self._last_closure = index
         return closure

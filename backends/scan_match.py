@@ -134,8 +134,7 @@ def _rigid_fit(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> n
     cos_term = w @ (s[:, 0] * t[:, 0] + s[:, 1] * t[:, 1])
     sin_term = w @ (s[:, 0] * t[:, 1] - s[:, 1] * t[:, 0])
     yaw = np.arctan2(sin_term, cos_term)
-    c, sn = np.cos(yaw), np.sin(yaw)
-    translation = mu_t - np.array([[c, -sn], [sn, c]]) @ mu_s
+    translation = mu_t - rotation_2d(yaw) @ mu_s
     return np.array([translation[0], translation[1], yaw])
 
 

@@ -17,6 +17,7 @@ from pydantic import ValidationError
 from smokyslam.config.base import Section
 from smokyslam.config.estimation import (
     BackendConfig,
+    CameraFactorKind,
     CameraGateConfig,
     CameraOdometryConfig,
     KeyframeConfig,
@@ -51,6 +52,7 @@ from smokyslam.errors import ConfigError
 
 __all__ = [
     "BackendConfig",
+    "CameraFactorKind",
     "CameraGateConfig",
     "CameraModelConfig",
     "CameraOdometryConfig",

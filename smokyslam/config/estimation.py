@@ -259,6 +259,10 @@ class BackendConfig(_Section):
     scale: ScaleConfig = ScaleConfig()
 
 
+CameraFactorKind = Literal["yaw", "pose"]
+"""What a camera factor holds: the camera's turn alone, or its whole metric step."""
+
+
 class SlamConfig(_Section):
     """The fused pipeline (``--odometry fused``): which factors feed the graph, and how.
 
@@ -272,7 +276,7 @@ class SlamConfig(_Section):
     camera_process: bool = Field(True, description="track the camera in a worker process")
     # yaw against pose on 108 unseen 120 s runs: fused ATE 0.83-0.86x (geometric means of three
     # sets), the camera in 97 % of keyframe pairs instead of 30 % (docs/accuracy.md).
-    camera_factor: Literal["yaw", "pose"] = Field(
+    camera_factor: CameraFactorKind = Field(
         "yaw",
         description="what a camera factor holds: yaw, the turn alone (its translation is left"
         " to the radar); pose, the whole step made metric by the windowed scale",
