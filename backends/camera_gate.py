@@ -55,10 +55,12 @@ class HealthRamp:
 
 @dataclass(frozen=True)
 class GateDecision:
-    """weight: 0 (drop camera factors) to 1 (trust as reported).
+    """weight: 0 (drop camera factors) to 1 (trust as reported): tracking times quality.
+    tracking: its tracking part alone (0 when dropped).
     reentered: True on the first frame the camera is used again after being dropped."""
 
     weight: float
+    tracking: float
     reentered: bool = False
 
 
@@ -115,13 +117,13 @@ class CameraGate:
             if tracking < self._drop_below:
                 self._dropped = True
                 self._healthy_streak = 0
-                return GateDecision(0.0)
-            return GateDecision(weight)
+                return GateDecision(0.0, 0.0)
+            return GateDecision(weight, tracking)
         self._healthy_streak = self._healthy_streak + 1 if tracking >= self._reenter_above else 0
         if self._healthy_streak < self._reenter_frames:
-            return GateDecision(0.0)
+            return GateDecision(0.0, 0.0)
         self._dropped = False
-        return GateDecision(weight, reentered=True)
+        return GateDecision(weight, tracking, reentered=True)
 
 
 def inflate_covariance(covariance: np.ndarray, weight: float) -> np.ndarray:

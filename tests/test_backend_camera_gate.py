@@ -30,7 +30,10 @@ def test_weight_ramps_between_good_and_bad():
     half_noise = CameraHealth(0.375, 0.2, 200, 0.9)  # halfway on the 0.05..0.70 ramp
     assert gate.update(half_noise).weight == pytest.approx(0.5)
     half_tracked = CameraHealth(0.375, 0.2, 47.5, 0.9)  # and halfway on the tracked ramp
-    assert gate.update(half_tracked).weight == pytest.approx(0.25)  # tracking x quality
+    decision = gate.update(half_tracked)
+    assert decision.weight == pytest.approx(0.25)  # tracking x quality
+    assert decision.tracking == pytest.approx(0.5)  # and the tracking part alone
+    assert gate.update(half_noise).tracking == 1.0
     assert gate.raw_weight(BLIND) == 0.0
     assert HealthRamp(good=0.12, bad=0.03).weight(0.075) == pytest.approx(0.5)
     np.testing.assert_allclose(inflate_covariance(np.eye(3), 0.5), 4.0 * np.eye(3))
@@ -54,7 +57,8 @@ def test_a_noisy_camera_that_tracks_is_weighed_never_dropped():
 def test_hysteresis_drops_then_needs_several_healthy_frames():
     gate = get_camera_gate(CameraGateConfig(reenter_frames=3))
     flicker = CameraHealth(0.0, 0.2, 20, 0.9)  # tracking weight 0.08, below drop_below 0.15
-    assert gate.update(flicker).weight == 0.0
+    dropped = gate.update(flicker)
+    assert dropped.weight == 0.0 and dropped.tracking == 0.0
     assert gate.dropped
     decisions = [gate.update(h) for h in (HEALTHY, flicker, HEALTHY, HEALTHY, HEALTHY, HEALTHY)]
     assert [d.weight for d in decisions] == [0.0, 0.0, 0.0, 0.0, 1.0, 1.0]

@@ -222,6 +222,21 @@ def test_a_yaw_factor_holds_the_camera_turn_from_the_first_pair_and_leaves_trans
     assert 0.2 / np.sqrt(radar_covariance[2, 2] + yaw_variance) > 30
 
 
+def test_image_noise_weighs_a_pose_factor_but_not_a_yaw_factor():
+    # The camera's turn is as good at noise 0.4 as in clean air (docs/accuracy.md): a yaw
+    # factor is weighed by tracking alone, so a noisy camera that tracks keeps full weight.
+    _, clean = _camera_scene(kind="yaw")
+    _, noisy = _camera_scene(noise=0.6, kind="yaw")  # quality weight 0.15, tracking 1
+    for (_, factor), (_, reference) in zip(noisy, clean, strict=True):
+        assert factor.weight == 1.0
+        np.testing.assert_array_equal(factor.covariance, reference.covariance)
+    _, noisy_pose = _camera_scene(noise=0.6)
+    assert {round(f.weight, 6) for _, f in noisy_pose if f is not None} == {round(0.1 / 0.65, 6)}
+    # A blinded camera (no quality left) is still gated, whatever the factor holds.
+    maker, outcomes = _camera_scene(noise=0.75, kind="yaw")
+    assert all(f is None for _, f in outcomes) and maker.outcomes["gated"] == len(outcomes)
+
+
 def test_an_unknown_camera_factor_kind_is_one_clear_error():
     with pytest.raises(ConfigError, match="unknown camera factor kind 'roll'"):
         _camera_scene(kind="roll")
