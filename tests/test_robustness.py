@@ -403,8 +403,9 @@ def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
     # The Ctrl-C must land while a run is under way on a Dask worker, after its first frames:
     # the delay adapts to the machine's load, as for a single run. The window is short (the
     # radar runs take about a second; a fused run must be past its camera's start-up), so
-    # the delay moves in small steps and has ten tries (CI once missed it in five).
-    delay_s = 2.0
+    # the delay is bisected between one known too early and one known too late, in ten tries
+    # (CI once missed it in five, and once in ten when the delay stepped back and forth).
+    delay_s, too_early_s, too_late_s = 2.0, 0.0, None
     for attempt in range(10):
         out_dir = tmp_path / f"cmp{attempt}"
         args = ["compare", office_log, "--sources", "radar,fused", "--smoke", "0:0,0.1:0.2"]
@@ -419,7 +420,8 @@ def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
         _, stderr = process.communicate(timeout=60)
         stopped_s = time.monotonic() - started
         if process.returncode == 0:  # every run had finished
-            delay_s *= 0.7
+            too_late_s = delay_s
+            delay_s = (too_early_s + too_late_s) / 2
             continue
         assert stopped_s < STOP_WITHIN_S
         assert process.returncode == 130 and "Traceback" not in stderr, stderr
@@ -430,7 +432,8 @@ def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
         # A run that was under way kept what it computed, as a Ctrl-C'd run does.
         kept = [json.loads(p.read_text()) for p in out_dir.glob("runs/*/metrics.json")]
         if not any(m.get("interrupted") and "trajectory" in m for m in kept):
-            delay_s += 0.5  # stopped before a run had done two frames
+            too_early_s = delay_s  # stopped before a run had done two frames
+            delay_s = delay_s + 0.5 if too_late_s is None else (too_early_s + too_late_s) / 2
             continue
         assert all(m["trajectory"]["frames"] > 0 for m in kept if "trajectory" in m)
         return
