@@ -404,7 +404,8 @@ def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
     # the delay adapts to the machine's load, as for a single run. The window is short (the
     # radar runs take about a second; a fused run must be past its camera's start-up), so
     # the delay is bisected between one known too early and one known too late, in ten tries
-    # (CI once missed it in five, and once in ten when the delay stepped back and forth).
+    # (CI once missed it in five, and twice in ten when a Ctrl-C between the first runs and
+    # the next was taken for one too early).
     delay_s, too_early_s, too_late_s = 2.0, 0.0, None
     for attempt in range(10):
         out_dir = tmp_path / f"cmp{attempt}"
@@ -432,7 +433,12 @@ def test_ctrl_c_stops_a_comparison_within_seconds(office_log, tmp_path):
         # A run that was under way kept what it computed, as a Ctrl-C'd run does.
         kept = [json.loads(p.read_text()) for p in out_dir.glob("runs/*/metrics.json")]
         if not any(m.get("interrupted") and "trajectory" in m for m in kept):
-            too_early_s = delay_s  # stopped before a run had done two frames
+            # Stopped between runs (the first ones had finished, the next had not begun) or
+            # before any run had done two frames.
+            if any(not m.get("interrupted") for m in kept):
+                too_late_s = delay_s
+            else:
+                too_early_s = delay_s
             delay_s = delay_s + 0.5 if too_late_s is None else (too_early_s + too_late_s) / 2
             continue
         assert all(m["trajectory"]["frames"] > 0 for m in kept if "trajectory" in m)
