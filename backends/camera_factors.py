@@ -11,7 +11,8 @@ every run: docs/accuracy.md.)
 What a factor holds (``slam.camera_factor``):
 
 - ``yaw`` (the default): the camera's turn between the keyframes, with its reported variance
-  scaled up to its measured errors (``slam.camera_yaw_variance_scale``). Its translation is the
+  scaled (``slam.camera_yaw_variance_scale``) so that its sigma stands to the radar's as their
+  measured errors do (both then claim about twice their error). Its translation is the
   radar's step, left free (:data:`FREE_TRANSLATION_VARIANCE_M2`), and the check compares the
   turns alone (1 dof). Measured against the truth on simulated walks, the camera's metric
   step is 27-69 mm off along the path (its scale) against the radar's 4-5 mm, while its turn is
@@ -127,7 +128,7 @@ class CameraFactorMaker:
         scale: ScaleEstimator | SharedScale,
         covariance_scale: float,
         consistency_chi2: float,
-        kind: str,
+        kind: CameraFactorKind,
         yaw_variance_scale: float,
     ) -> None:
         if kind not in FACTOR_KINDS:
@@ -286,7 +287,7 @@ def get_camera_factor_maker(
     slam: SlamConfig,
     T_base_camera: np.ndarray,
     scale: ScaleEstimator | SharedScale | None = None,
-    kind: str | None = None,
+    kind: CameraFactorKind | None = None,
 ) -> CameraFactorMaker:
     """The camera factor maker of the backend and slam config sections; ``scale``: one to
     use instead of its own (``backend.scale``); ``kind``: what its factors hold, instead of

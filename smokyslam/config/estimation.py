@@ -281,7 +281,7 @@ class SlamConfig(_Section):
         description="what a camera factor holds: yaw, the turn alone (its translation is left"
         " to the radar); pose, the whole step made metric by the windowed scale",
     )
-    # 64: the camera's yaw sigma about 1.8x the radar's, as measured against the truth (radar
+    # 64: the camera claims about 1.9x the radar's yaw sigma; measured against the truth (radar
     # 0.22 deg, camera 0.38 deg RMS per keyframe pair over 72 runs; docs/accuracy.md).
     camera_yaw_variance_scale: float = Field(
         64.0, gt=0.0, description="yaw factors: variance multiplier on the camera's reported yaw"
