@@ -21,7 +21,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from smokyslam.backends.noise import floored_covariance, tangent_covariance
-from smokyslam.backends.scan_match import IcpResult, Scan, best_rival, fit_score, icp_2d
+from smokyslam.backends.scan_match import (
+    IcpResult,
+    Scan,
+    best_rival,
+    fit_score,
+    icp_2d,
+    match_covariance,
+)
 from smokyslam.geometry import se2_between
 
 if TYPE_CHECKING:
@@ -35,7 +42,8 @@ class LoopClosure:
     """A verified relative pose between an old keyframe and the current one.
 
     delta: (3,) pose of keyframe ``new_index`` in the frame of ``old_index``.
-    covariance: (3, 3) in gtsam's Pose2 tangent ``[x, y, theta]``, floored.
+    covariance: (3, 3) in gtsam's Pose2 tangent ``[x, y, theta]``: the match's
+    (:func:`match_covariance`), floored.
     """
 
     old_index: int
@@ -65,11 +73,13 @@ class LoopCloser:
         rival_radii_m: tuple[float, ...],
         rival_sigma_m: float,
         normal_radius_m: float | None,
+        match_sigmas_m: tuple[float, float],
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
-        floor_sigmas: smallest [x_m, y_m, theta_rad] sigmas a closure may claim (point-to-point
-        ICP is overconfident on sparse radar points). near: (metres, inlier fraction) a match
+        floor_sigmas: smallest [x_m, y_m, theta_rad] sigmas a closure may claim. match_sigmas_m:
+        (along a target normal, without one) sigma of one matched point in the closure's
+        covariance (:func:`match_covariance`). near: (metres, inlier fraction) a match
         that shifts the guess at most that far needs only that inlier fraction. Where the
         estimate was already right, a partial overlap rarely aligns wrongly; a far correction on
         partial overlap is as often an aisle or corridor slid along as a real one.
@@ -90,6 +100,7 @@ class LoopCloser:
         self._rival_radii_m = tuple(rival_radii_m)
         self._rival_sigma_m = rival_sigma_m
         self._normal_radius_m = normal_radius_m
+        self._match_sigmas_m = match_sigmas_m
         self._submaps: dict[int, Scan] = {}
         self._last_closure = -(10**9)
 
@@ -141,8 +152,15 @@ class LoopCloser:
         if self._ambiguous(submap, self._submaps[old_index], result, correction):
             logger.debug("loop closure %d -> %d dropped: a rival fits as well", old_index, index)
             return None
+        covariance = match_covariance(
+            submap,
+            self._submaps[old_index],
+            result.delta,
+            self._inlier_distance_m,
+            self._match_sigmas_m,
+        )
         covariance = floored_covariance(
-            tangent_covariance(result.delta, result.covariance), self._floor_sigmas
+            tangent_covariance(result.delta, covariance), self._floor_sigmas
         )
         logger.debug("loop closure %d -> %d, rms %.3f m", old_index, index, result.rms_m)
         return LoopClosure(
@@ -205,4 +223,5 @@ def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
         rival_radii_m=config.rival_radii_m,
         rival_sigma_m=config.rival_sigma_m,
         normal_radius_m=config.normal_radius_m,
+        match_sigmas_m=config.match_sigmas_m,
     )

