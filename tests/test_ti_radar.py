@@ -20,7 +20,7 @@ from smokyslam.frontends.sensors.ti_radar import TiRadar
 from smokyslam.pipelines.record import record
 
 CFG = Path(__file__).resolve().parents[1] / "configs/iwr1443_indoor.cfg"
-FRAME_PERIOD_S = 0.1  # the .cfg's frameCfg period (100 ms)
+FRAME_PERIOD_S = load_ti_config(CFG).frame_period_s  # the .cfg's frameCfg period (100 ms)
 
 
 class FakeRadar:
