@@ -261,33 +261,46 @@ def _alive(pid: int) -> bool:
     return stat.exists() and stat.read_text().split()[2] != "Z"
 
 
-def _interrupt_run(log: Path, out_dir: Path, delay_s: float) -> tuple[subprocess.Popen, str, list]:
-    """A fused run, Ctrl-C'd ``delay_s`` after its camera worker started; (process, stderr,
-    the run's child processes)."""
-    process = _start(["run", log, "--odometry", "fused", "--out", out_dir], out_dir, settle_s=0.0)
-    deadline = time.monotonic() + 60
-    while not (children := _children(process.pid)) and time.monotonic() < deadline:
-        time.sleep(0.02)
+def _interrupt_run(
+    log: Path, out_dir: Path, after_bytes: int
+) -> tuple[subprocess.Popen, str, list]:
+    """A fused run, Ctrl-C'd once its Rerun recording (written frame by frame as the run goes)
+    has grown past ``after_bytes``; (process, stderr, the run's child processes).
+
+    Waiting on the run's own progress, not on the clock, keeps the Ctrl-C inside the run on a
+    fast machine and on a loaded one alike: on a quiet 2-core machine the 301 frames take only
+    about 1.5 s, after about 2 s of start-up."""
+    recording = out_dir / "run.rrd"
+    process = _start(
+        ["run", log, "--odometry", "fused", "--out", out_dir, "--rerun", recording], out_dir, 0.0
+    )
+    deadline = time.monotonic() + 120
+    children: list[int] = []
+    while process.poll() is None and time.monotonic() < deadline:
+        children = children or _children(process.pid)
+        if children and recording.is_file() and recording.stat().st_size > after_bytes:
+            os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
+            break
+        time.sleep(0.01)
     assert children, "the fused run tracks the camera in a worker"
-    time.sleep(delay_s)
-    os.killpg(process.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
     _, stderr = process.communicate(timeout=60)
     return process, stderr, children
 
 
 def test_ctrl_c_keeps_what_the_run_computed(office_log, tmp_path):
-    # The Ctrl-C must land after the first frames and before the last: how long that takes
-    # depends on the machine's load, so the delay adapts (later when no frame was done yet,
-    # earlier when the run had finished).
-    delay_s = 1.0
+    # The Ctrl-C must land after the first frames and before the last. It is sent once the
+    # recording holds the first frames (about 1 MB of the 30 s log's 7 MB); should it still
+    # land outside the frames, the threshold moves (later when no frame was done yet, earlier
+    # when the run had finished).
+    after_bytes = 1_000_000
     for attempt in range(5):
         out_dir = tmp_path / f"run{attempt}"
-        process, stderr, children = _interrupt_run(office_log, out_dir, delay_s)
+        process, stderr, children = _interrupt_run(office_log, out_dir, after_bytes)
         assert "Traceback" not in stderr, stderr
         time.sleep(1.0)
         assert not [pid for pid in children if _alive(pid)]
         if process.returncode == 0:  # finished before the Ctrl-C
-            delay_s /= 2
+            after_bytes //= 2
             continue
         assert process.returncode == 130, stderr
         # A Ctrl-C before the camera's first metric keyframe leaves the visual map empty: a
@@ -301,11 +314,11 @@ def test_ctrl_c_keeps_what_the_run_computed(office_log, tmp_path):
         metrics = json.loads((out_dir / "metrics.json").read_text())
         assert metrics["interrupted"] is True
         if "trajectory" not in metrics:  # interrupted before two frames were done
-            delay_s += 1.0
+            after_bytes *= 2
             continue
         if metrics["trajectory"]["frames"] == 301:  # after the last frame: the outputs are
             assert (out_dir / "maps" / "radar_sparse.pgm").is_file()  # written whole
-            delay_s /= 2
+            after_bytes //= 2
             continue
         assert 0 < metrics["trajectory"]["frames"] < 301
         stamps = np.loadtxt(out_dir / "trajectory.tum")[:, 0]
