@@ -11,8 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from smokyslam.config import FusionConfig
 from smokyslam.geometry import GridSpec
 from smokyslam.mapio import UNKNOWN, load_map, save_map
+
+T_CLEAR = FusionConfig().trust_model.t_clear
+"""A clear camera's trust index t."""
 
 pytest.importorskip("torch")
 
@@ -94,7 +98,7 @@ def test_a_fused_run_writes_its_fused_map_and_trust(table):
     metrics = json.loads((run / "metrics.json").read_text())
     assert {"radar_sparse", "radar_dense", "visual", "fused"} <= set(metrics["maps"])
     assert metrics["fusion"]["rule"] == "linear"
-    assert metrics["fusion"]["trust_mean"] == pytest.approx(0.5, abs=0.05)  # a clear camera
+    assert metrics["fusion"]["trust_mean"] == pytest.approx(T_CLEAR, abs=0.02)  # a clear camera
     assert (run / "maps/fused.yaml").is_file() and (run / "maps/visual.trust.npz").is_file()
 
 
@@ -112,7 +116,7 @@ def test_fuse_command_with_measured_and_forced_trust(table, tmp_path):
     assert forced.returncode == 0, forced.stderr
     summary = json.loads((tmp_path / "forced/metrics.json").read_text())["fusion"]
     assert summary["trust_mean"] == pytest.approx(0.9) and summary["rule"] == "log-odds"
-    assert measured["trust_mean"] == pytest.approx(0.5, abs=0.05)  # a clear camera
+    assert measured["trust_mean"] == pytest.approx(T_CLEAR, abs=0.02)  # a clear camera
 
 
 def test_fuse_registers_the_camera_only_map(table, tmp_path):
