@@ -126,14 +126,13 @@ def _trust_index(frames, **smoke) -> float:
 
 def test_the_trust_index_rises_with_salt_and_pepper_noise_and_with_haze(frames):
     t_clear = FusionConfig().trust_model.t_clear
-    # How far t has risen from a clear camera's t_clear towards 1 (a blind camera's).
-    noise = [
-        (_trust_index(frames, camera_noise=c) - t_clear) / (1.0 - t_clear)
-        for c in (0.0, 0.1, 0.2, 0.3, 0.45)
-    ]
-    haze = [
-        (_trust_index(frames, haze=h) - t_clear) / (1.0 - t_clear) for h in (0.0, 0.2, 0.5, 1.0)
-    ]
+
+    def rise(**smoke) -> float:
+        """How far t has risen from a clear camera's t_clear towards 1 (a blind camera's)."""
+        return (_trust_index(frames, **smoke) - t_clear) / (1.0 - t_clear)
+
+    noise = [rise(camera_noise=c) for c in (0.0, 0.1, 0.2, 0.3, 0.45)]
+    haze = [rise(haze=h) for h in (0.0, 0.2, 0.5, 1.0)]
     assert noise[0] == pytest.approx(0.0, abs=0.1)  # a clear camera: t_clear
     assert all(b > a + 0.06 for a, b in itertools.pairwise(noise)), noise
     assert all(b > a + 0.02 for a, b in itertools.pairwise(haze)), haze

@@ -100,8 +100,7 @@ def test_a_fused_run_writes_its_fused_map_and_trust(table):
     metrics = json.loads((run / "metrics.json").read_text())
     assert {"radar_sparse", "radar_dense", "visual", "fused"} <= set(metrics["maps"])
     assert metrics["fusion"]["rule"] == "linear"
-    clear = pytest.approx(T_CLEAR, abs=CLEAR_TOLERANCE)
-    assert metrics["fusion"]["trust_mean"] == clear  # a clear camera
+    assert metrics["fusion"]["trust_mean"] == pytest.approx(T_CLEAR, abs=CLEAR_TOLERANCE)
     assert (run / "maps/fused.yaml").is_file() and (run / "maps/visual.trust.npz").is_file()
 
 
