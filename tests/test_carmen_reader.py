@@ -1,5 +1,6 @@
-"""CARMEN laser logs: parsing (malformed lines skipped and counted), beam geometry, no-return
-detection, and the radar emulation (Doppler, gyro) checked against the logged poses."""
+"""CARMEN laser logs: parsing (malformed lines skipped and counted; FLASER and ROBOTLASER1
+lines), beam geometry, the laser's mount, no-return detection, and the radar emulation
+(Doppler, gyro) checked against the logged poses."""
 
 import gzip
 
@@ -13,7 +14,8 @@ from smokyslam.frontends.radar.doppler import estimate_ego_velocity
 from smokyslam.frontends.radar.odometry import DeadReckoning
 from smokyslam.frontends.readers.carmen import CarmenReader
 from smokyslam.frontends.readers.carmen_emulation import beam_bearings, detect_no_return
-from smokyslam.geometry import se2_between
+from smokyslam.frontends.readers.registry import open_log
+from smokyslam.geometry import se2_between, se2_compose
 from smokyslam.types import ImuSample, RadarScan
 
 
@@ -198,3 +200,71 @@ def test_trajectory_stamps_use_the_logs_own_times_when_they_increase(tmp_path, c
     stamps = reader.ground_truth_trajectory().stamps_s
     np.testing.assert_array_equal(reader.log_time_s(stamps), stamps)  # by index
     assert "timestamps do not increase" in caplog.text and "by scan index" in caplog.text
+
+
+def _robotlaser(ranges, robot, mount, start_rad, resolution_rad, stamp):
+    """A ``ROBOTLASER1`` line: the scan ``ranges`` of a laser mounted at ``mount`` on a robot
+    at ``robot``, with two remission values."""
+    laser = se2_compose(robot, mount)
+    fov = resolution_rad * (len(ranges) - 1)
+    head = f"ROBOTLASER1 0 {start_rad:.6f} {fov:.6f} {resolution_rad:.8f} {NO_RETURN} 0.01 0"
+    values = " ".join(f"{r:.4f}" for r in ranges)
+    poses = " ".join(f"{v:.6f}" for v in np.concatenate([laser, robot]))
+    return (
+        f"{head} {len(ranges)} {values} 2 0.5 0.5 {poses} 0.3 0.1 0.5 0.3 0.0 {stamp} host {stamp}"
+    )
+
+
+MOUNT = np.array([0.25, -0.05, 0.1])
+"""A laser ahead of the robot, a little right, turned 5.7 degrees left."""
+
+
+def _robotlaser_log(path, poses):
+    """A log of 241 beams from -120 deg at 1 deg, two malformed lines among them."""
+    start_rad, resolution_rad = np.radians(-120.0), np.radians(1.0)
+    bearings = start_rad + resolution_rad * np.arange(241)
+    lines = ["# CARMEN log with ROBOTLASER1 lines", "ODOM 0 0 0 0 0 0 0 host 0"]
+    for i, pose in enumerate(poses):
+        ranges = box_ranges(se2_compose(pose, MOUNT), bearings)
+        lines.append(_robotlaser(ranges, pose, MOUNT, start_rad, resolution_rad, 10.0 + i))
+    lines.insert(3, lines[2].rsplit(" ", 30)[0])  # truncated
+    lines.insert(4, lines[2].replace(" 241 ", " 241x ", 1))  # bad beam count
+    path.write_text("\n".join(lines) + "\n")
+    return path, bearings
+
+
+def test_robotlaser_lines_give_their_own_beams_and_the_laser_mount(tmp_path):
+    poses = carmen_poses(6)
+    path, bearings = _robotlaser_log(tmp_path / "a.clf", poses)
+    config = _quiet_config(emulate_radar=False)
+    config.simulation.radar.max_range_m = 50.0
+    reader = open_log(path, config)  # .clf is a CARMEN log
+    assert reader.skipped_lines == 2
+    assert reader.summary().streams[0].topic == "ROBOTLASER1"
+    np.testing.assert_allclose(reader.radar_mount, MOUNT, atol=1e-5)
+    np.testing.assert_allclose(reader.beams.bearings_rad, bearings, atol=1e-5)
+    np.testing.assert_allclose(reader.ground_truth_trajectory().poses_world_base, poses, atol=1e-5)
+    np.testing.assert_allclose(reader.log_time_s(reader.stamps_s), 10.0 + np.arange(6))
+    scan = next(f for f in reader.frames() if isinstance(f, RadarScan))
+    # Every beam's end lies on the room's walls once placed with the mount and the pose.
+    ends = se2_compose(
+        se2_compose(poses[0], MOUNT),
+        np.column_stack([scan.points_xy_m, 0 * scan.points_xy_m[:, 0]]),
+    )
+    on_wall = np.minimum.reduce([ends[:, 0], 12.0 - ends[:, 0], ends[:, 1], 8.0 - ends[:, 1]])
+    assert len(scan) > 200
+    np.testing.assert_allclose(on_wall, 0.0, atol=2e-3)
+
+
+def test_a_log_with_both_kinds_is_read_as_the_kind_most_lines_are(tmp_path):
+    poses = carmen_poses(6)
+    robot_lines = _robotlaser_log(tmp_path / "r.log", poses)[0].read_text().splitlines()
+    flaser_lines = write_carmen_log(tmp_path / "f.log", poses[:4], malformed=False)
+    mixed = tmp_path / "mixed.log.gz"
+    with gzip.open(mixed, "wt") as stream:
+        stream.write("\n".join(flaser_lines.read_text().splitlines() + robot_lines) + "\n")
+    reader = CarmenReader(mixed, SmokySlamConfig())
+    assert reader.summary().streams[0].topic == "ROBOTLASER1"
+    assert len(reader.ground_truth_trajectory()) == 6
+    flaser_lines.write_text(flaser_lines.read_text() + "\n".join(robot_lines[2:4]) + "\n")
+    assert CarmenReader(flaser_lines, SmokySlamConfig()).summary().streams[0].topic == "FLASER"

@@ -18,7 +18,11 @@ from hypothesis import strategies as st
 
 from smokyslam.config import load_config
 from smokyslam.errors import LogError, MessageError, SmokySlamError
-from smokyslam.frontends.readers.carmen import _parse_flaser, read_laser_log
+from smokyslam.frontends.readers.carmen_parse import (
+    _parse_flaser,
+    _parse_robotlaser,
+    read_laser_log,
+)
 from smokyslam.frontends.readers.registry import open_log
 from smokyslam.pipelines.run import run_log
 from smokyslam.rosmsg import MessageBuilder
@@ -204,8 +208,43 @@ def test_a_carmen_line_parses_or_is_rejected(scan, flips):
         assert np.isfinite(record[0]).all() and np.isfinite(record[1]).all()
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    scan=st.integers(1, 30).flatmap(
+        lambda n: st.tuples(
+            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=n, max_size=n),
+            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=9, max_size=9),
+        )
+    ),
+    remissions=st.integers(-2, 4),
+    flips=st.lists(st.tuples(st.integers(0, 70), st.text(max_size=5)), max_size=4),
+)
+def test_a_robotlaser_line_parses_or_is_rejected(scan, remissions, flips):
+    ranges, numbers = scan
+    fan, poses = numbers[:3], numbers[3:]
+    tokens = ["ROBOTLASER1", "0", *map(repr, fan), "80", "0.01", "0", str(len(ranges))]
+    tokens += [*map(repr, ranges), str(remissions), *["0.5"] * max(remissions, 0)]
+    tokens += [*map(repr, poses), "0", "0", "0", "0", "0", "12.5", "host", "12.5"]
+    for index, text in flips:
+        if index < len(tokens):
+            tokens[index] = text
+    record = _parse_robotlaser(tokens)
+    if record is not None:
+        assert np.isfinite(record.ranges).all() and np.isfinite(record.pose).all()
+        assert np.isfinite(record.laser_pose).all() and record.fan[1] > 0.0
+
+
 @settings(max_examples=100, deadline=None)
-@given(lines=st.lists(st.text(alphabet="FLASER0123456789 .-e\tnaif", max_size=60), max_size=30))
+@given(
+    lines=st.lists(
+        st.sampled_from(["FLASER ", "ROBOTLASER1 ", ""]).flatmap(
+            lambda head: st.text(alphabet="0123456789 .-e\tnaif", max_size=60).map(
+                lambda rest: head + rest
+            )
+        ),
+        max_size=30,
+    )
+)
 def test_a_carmen_file_of_anything_reads_or_is_one_log_error(tmp_path_factory, lines):
     path = tmp_path_factory.mktemp("carmen") / "any.log"
     path.write_text("\n".join(lines))

@@ -1,8 +1,7 @@
-"""CARMEN laser logs (``.log`` / ``.log.gz``) replayed as a radar rig.
+"""CARMEN laser logs (``.log``, ``.clf``, plain or gzip) replayed as a radar rig.
 
-``FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta timestamp [host logger_timestamp]``:
-n beams over 180° (180 at 1°, 360/361 at 0.5°, derived from n), the first looking right.
-The ``x y theta`` pose on each line is the (SLAM-corrected) ground truth of ``base_link``.
+The log's ``FLASER`` or ``ROBOTLASER1`` lines (``carmen_parse.py``) give a laser scan and the
+(SLAM-corrected) ground-truth pose of ``base_link`` per line.
 
 Timestamps in these logs are often printed at low precision or go backwards, so they do not
 drive the run: scan i is stamped ``i / carmen.nominal_rate_hz`` seconds, and all motion
@@ -17,18 +16,13 @@ interval; none for the first scan) and a :class:`RadarScan` (emulated radar poin
 Doppler, or every valid beam when emulation is off). The line's pose is the ground truth
 (``ground_truth_trajectory()``).
 
-Malformed ``FLASER`` lines are skipped, logged and counted in ``skipped_lines``. Other message
-types (``ODOM``, ``PARAM``, ``NEFF``...) are ignored, except ``PARAM robot_frontlaser_offset``,
-the laser's forward offset on the robot.
+Malformed laser lines are skipped, logged and counted in ``skipped_lines``.
 """
 
 from __future__ import annotations
 
-import gzip
 import logging
-import zlib
 from collections.abc import Collection, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +37,7 @@ from smokyslam.frontends.readers.carmen_emulation import (
     emulate_motion,
     emulate_radar_points,
 )
+from smokyslam.frontends.readers.carmen_parse import read_laser_log
 from smokyslam.geometry import se2_compose, se3_from_se2
 from smokyslam.types import (
     CameraIntrinsics,
@@ -57,124 +52,6 @@ from smokyslam.types import (
 logger = logging.getLogger(__name__)
 
 
-@dataclass
-class LaserLog:
-    """The ``FLASER`` records of one log, all with the same beam count n.
-
-    ranges_m: (S, n) metres. poses_world_base: (S, 3) [x, y, theta]. timestamps_s: (S,) the
-    lines' own timestamps (NaN where unreadable). laser_offset_m: forward offset of the laser
-    on the robot. skipped_lines: malformed ``FLASER`` lines.
-    """
-
-    ranges_m: np.ndarray
-    poses_world_base: np.ndarray
-    timestamps_s: np.ndarray
-    laser_offset_m: float
-    skipped_lines: int
-
-
-def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """Ranges (n,), pose (3,) and timestamp (NaN if unreadable) of one split ``FLASER`` line,
-    or None when malformed."""
-    try:
-        n = int(tokens[1])
-        if n <= 0 or len(tokens) < 2 + n + 7:
-            return None
-        values = np.array(tokens[2 : 2 + n + 3], dtype=float)
-    except (ValueError, IndexError):
-        return None
-    if not np.all(np.isfinite(values)):
-        return None
-    return values[:n], values[n:], _float_or(tokens[2 + n + 6], float("nan"))
-
-
-MAX_RANGE_M = 1000.0
-"""Beams longer than this (or negative) are no laser's reading: counted and left out."""
-
-
-def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
-    """Parse every ``FLASER`` line of a CARMEN log (plain or gzip text).
-
-    The beam count is the one most lines have (a damaged first line cannot decide it); lines
-    with another count are skipped. Beams beyond ``MAX_RANGE_M`` or negative read as no
-    return; a line of only such beams is dropped, and so is a line whose pose jumps more than
-    ``max_jump_m`` from the line before while the line after it does not (a single absurd
-    pose). All are counted and warned.
-    """
-    opener = gzip.open if path.suffix == ".gz" else open
-    ranges, poses, times, skipped, offset = [], [], [], 0, 0.0
-    try:
-        with opener(path, "rt", errors="replace") as stream:
-            for number, line in enumerate(stream, start=1):
-                tokens = line.split()
-                if not tokens or tokens[0] not in ("FLASER", "PARAM"):
-                    continue
-                if tokens[0] == "PARAM":
-                    if len(tokens) >= 3 and tokens[1] == "robot_frontlaser_offset":
-                        offset = _float_or(tokens[2], offset)
-                    continue
-                record = _parse_flaser(tokens)
-                if record is None:
-                    skipped += 1
-                    logger.debug("%s:%d: malformed FLASER line skipped", path, number)
-                    continue
-                ranges.append(record[0])
-                poses.append(record[1])
-                times.append(record[2])
-    except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:
-        raise LogError(f"{path}: cannot read CARMEN log ({exc})") from None
-    if not ranges:
-        raise LogError(f"{path}: no FLASER lines")
-    sizes, counts = np.unique([r.size for r in ranges], return_counts=True)
-    n_beams = int(sizes[np.argmax(counts)])
-    same = [i for i, r in enumerate(ranges) if r.size == n_beams]
-    skipped += len(ranges) - len(same)
-    ranges_m = np.array([ranges[i] for i in same])
-    poses_m = np.array([poses[i] for i in same])
-    times_s = np.array([times[i] for i in same])
-    absurd = (ranges_m < 0.0) | (ranges_m > MAX_RANGE_M)
-    ranges_m[absurd] = np.inf
-    keep = _without_pose_spikes(poses_m, max_jump_m) & ~absurd.all(axis=1)
-    if skipped:
-        logger.warning("%s: skipped %d malformed FLASER lines", path, skipped)
-    if absurd.any():
-        logger.warning(
-            "%s: %d beams out of range (< 0 or > %g m) left out", path, absurd.sum(), MAX_RANGE_M
-        )
-    if not keep.all():
-        logger.warning(
-            "%s: %d lines with no usable beam or a pose jumping more than %g m and back dropped",
-            path,
-            (~keep).sum(),
-            max_jump_m,
-        )
-    return LaserLog(
-        ranges_m[keep], poses_m[keep], times_s[keep], offset, skipped + int((~keep).sum())
-    )
-
-
-def _without_pose_spikes(poses: np.ndarray, max_jump_m: float) -> np.ndarray:
-    """(S,) bool: lines kept. A line is dropped when it is further than ``max_jump_m`` from
-    the last kept line but the line after it is not (the walk did not really go there)."""
-    keep = np.ones(len(poses), dtype=bool)
-    last = 0
-    for i in range(1, len(poses)):  # sequential by nature: one test per line
-        jump = np.hypot(*(poses[i, :2] - poses[last, :2]))
-        back = i + 1 < len(poses) and np.hypot(*(poses[i + 1, :2] - poses[last, :2])) <= max_jump_m
-        if jump > max_jump_m and back:
-            keep[i] = False
-        else:
-            last = i
-    return keep
-
-
-def _float_or(token: str, default: float) -> float:
-    try:
-        return float(token)
-    except ValueError:
-        return default
-
-
 class CarmenReader:
     """A CARMEN laser log as a :class:`~smokyslam.frontends.readers.base.LogReader`."""
 
@@ -185,26 +62,31 @@ class CarmenReader:
         self._config = config
         self._log = read_laser_log(self.path, config.carmen.max_jump_m)
         n_beams = self._log.ranges_m.shape[1]
-        self.beams = BeamGeometry(beam_bearings(n_beams), detect_no_return(self._log.ranges_m))
+        bearings = self._log.bearings_rad
+        self.beams = BeamGeometry(
+            beam_bearings(n_beams) if bearings is None else bearings,
+            detect_no_return(self._log.ranges_m),
+        )
         self.dt_s = 1.0 / config.carmen.nominal_rate_hz
         self._said_nominal = False
         logger.info(
-            "%s: %d scans of %d beams, no-return %.2f m",
+            "%s: %d %s scans of %d beams, no-return %.2f m",
             self.path,
             len(self._log.ranges_m),
+            self._log.kind,
             n_beams,
             self.beams.no_return_m,
         )
 
     @property
     def skipped_lines(self) -> int:
-        """Malformed ``FLASER`` lines that were skipped."""
+        """Malformed laser lines that were skipped."""
         return self._log.skipped_lines
 
     @property
     def radar_mount(self) -> np.ndarray:
         """Planar pose ``[x, y, yaw]`` of the laser (emulated radar) on base_link."""
-        return np.array([self._log.laser_offset_m, 0.0, 0.0])
+        return self._log.laser_mount.copy()
 
     @property
     def stamps_s(self) -> np.ndarray:
@@ -234,15 +116,16 @@ class CarmenReader:
     def summary(self) -> LogSummary:
         count = len(self._log.ranges_m)
         rate = self._config.carmen.nominal_rate_hz
+        kind = self._log.kind
         streams = [
-            StreamSummary("FLASER", "carmen/FLASER as radar", count, rate),
+            StreamSummary(kind, f"carmen/{kind} as radar", count, rate),
             StreamSummary("gyro (emulated)", "ImuSample", max(count - 1, 0), rate),
-            StreamSummary("FLASER pose", "ground-truth pose", count, rate),
+            StreamSummary(f"{kind} pose", "ground-truth pose", count, rate),
         ]
         return LogSummary(self.path, "carmen", (count - 1) * self.dt_s, 0.0, streams)
 
     def frames(self, streams: Collection[str] | None = None) -> Iterator[Frame]:
-        """Gyro sample and radar scan per ``FLASER`` line (same seed, same frames on every
+        """Gyro sample and radar scan per laser line (same seed, same frames on every
         call). ``streams`` is accepted for the protocol; both are always emulated (the
         emulation draws them from one random stream)."""
         config = self._config
@@ -265,7 +148,7 @@ class CarmenReader:
             yield RadarScan(float(stamp_s), points, np.ones(len(points)), doppler)
 
     def ground_truth_trajectory(self) -> GroundTruthTrajectory | None:
-        """The ``FLASER`` lines' poses at the scans' nominal stamps."""
+        """The laser lines' poses at the scans' nominal stamps."""
         return GroundTruthTrajectory(self.stamps_s, self._log.poses_world_base.copy())
 
     def ground_truth_map(self) -> GroundTruthMap | None:

@@ -4,7 +4,7 @@
 | --- | --- | --- |
 | ``*.bag`` | ``ros1`` | :class:`RosbagReader` |
 | ``*.mcap``, ``*.db3``, a rosbag2 folder (``metadata.yaml``) | ``ros2`` | :class:`RosbagReader` |
-| ``*.log``, ``*.log.gz`` | ``carmen`` | ``CarmenReader`` (imported when first used) |
+| ``*.log``, ``*.clf`` (either ``.gz``) | ``carmen`` | ``CarmenReader`` (imported when first used) |
 
 Bag files are checked for their magic bytes first, so a text file renamed ``.bag`` is reported
 as "not a ROS1 bag" rather than as a rosbags parse error.
@@ -28,6 +28,8 @@ _MAGIC = {
     ".mcap": (b"\x89MCAP0\r\n", "an MCAP file"),
     ".db3": (b"SQLite format 3\x00", "an sqlite3 rosbag2 file"),
 }
+CARMEN_SUFFIXES = (".log", ".log.gz", ".clf", ".clf.gz")
+"""File name endings of CARMEN laser logs (``.clf``: the CARMEN log format's own suffix)."""
 _CARMEN_STREAMS = frozenset({"radar", "imu", "ground_truth_pose"})
 """Streams a CARMEN laser log provides (laser scans emulate the radar)."""
 
@@ -70,13 +72,13 @@ def log_format(path: Path) -> str:
             raise LogError(f"{path}: a folder but not a rosbag2 log (no metadata.yaml)")
         return "ros2"
     name = path.name.lower()
-    if name.endswith((".log", ".log.gz")):
+    if name.endswith(CARMEN_SUFFIXES):
         return "carmen"
     suffix = path.suffix.lower()
     if suffix not in _MAGIC:
         raise LogError(
             f"{path}: unknown log format '{suffix}' "
-            "(expected .bag, .mcap, .db3, a rosbag2 folder, .log or .log.gz)"
+            "(expected .bag, .mcap, .db3, a rosbag2 folder, or a CARMEN .log / .clf, maybe .gz)"
         )
     magic, what = _MAGIC[suffix]
     with path.open("rb") as stream:

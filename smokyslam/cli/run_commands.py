@@ -38,7 +38,7 @@ from smokyslam.errors import ConfigError
 def run(
     log: Annotated[
         Path | None,
-        typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log(.gz) log (none with --live)."),
+        typer.Argument(help="A .bag, .mcap, .db3 or CARMEN .log/.clf(.gz) log (none with --live)."),
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Output folder.")] = None,
     odometry: Annotated[
