@@ -187,22 +187,34 @@ def test_pointcloud2_decoding_of_anything(
     assert np.isfinite(scan.points_xyz_m).all() and len(scan) + dropped <= width * max(height, 1)
 
 
+def _scan_and_numbers(count: int):
+    """A strategy of (ranges of 1-30 beams, ``count`` more numbers), any float, NaN and inf."""
+    anything = st.floats(allow_nan=True, allow_infinity=True)
+    return st.integers(1, 30).flatmap(
+        lambda n: st.tuples(
+            st.lists(anything, min_size=n, max_size=n),
+            st.lists(anything, min_size=count, max_size=count),
+        )
+    )
+
+
+def _flipped(tokens: list[str], flips: list[tuple[int, str]]) -> list[str]:
+    """``tokens`` with some of them replaced by any text."""
+    for index, text in flips:
+        if index < len(tokens):
+            tokens[index] = text
+    return tokens
+
+
 @settings(max_examples=300, deadline=None)
 @given(
-    scan=st.integers(1, 30).flatmap(
-        lambda n: st.tuples(
-            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=n, max_size=n),
-            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=6, max_size=6),
-        )
-    ),
+    scan=_scan_and_numbers(6),
     flips=st.lists(st.tuples(st.integers(0, 60), st.text(max_size=5)), max_size=4),
 )
 def test_a_carmen_line_parses_or_is_rejected(scan, flips):
     ranges, pose = scan
     tokens = ["FLASER", str(len(ranges)), *map(repr, ranges), *map(repr, pose), "0", "host", "0"]
-    for index, text in flips:
-        if index < len(tokens):
-            tokens[index] = text
+    _flipped(tokens, flips)
     record = _parse_flaser(tokens)
     if record is not None:
         assert np.isfinite(record[0]).all() and np.isfinite(record[1]).all()
@@ -210,12 +222,7 @@ def test_a_carmen_line_parses_or_is_rejected(scan, flips):
 
 @settings(max_examples=300, deadline=None)
 @given(
-    scan=st.integers(1, 30).flatmap(
-        lambda n: st.tuples(
-            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=n, max_size=n),
-            st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=9, max_size=9),
-        )
-    ),
+    scan=_scan_and_numbers(9),
     remissions=st.integers(-2, 4),
     flips=st.lists(st.tuples(st.integers(0, 70), st.text(max_size=5)), max_size=4),
 )
@@ -225,10 +232,7 @@ def test_a_robotlaser_line_parses_or_is_rejected(scan, remissions, flips):
     tokens = ["ROBOTLASER1", "0", *map(repr, fan), "80", "0.01", "0", str(len(ranges))]
     tokens += [*map(repr, ranges), str(remissions), *["0.5"] * max(remissions, 0)]
     tokens += [*map(repr, poses), "0", "0", "0", "0", "0", "12.5", "host", "12.5"]
-    for index, text in flips:
-        if index < len(tokens):
-            tokens[index] = text
-    record = _parse_robotlaser(tokens)
+    record = _parse_robotlaser(_flipped(tokens, flips))
     if record is not None:
         assert np.isfinite(record.ranges).all() and np.isfinite(record.pose).all()
         assert np.isfinite(record.laser_pose).all() and record.fan[1] > 0.0
