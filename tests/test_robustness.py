@@ -217,7 +217,7 @@ def test_a_carmen_line_parses_or_is_rejected(scan, flips):
     _flipped(tokens, flips)
     record = _parse_flaser(tokens)
     if record is not None:
-        assert np.isfinite(record[0]).all() and np.isfinite(record[1]).all()
+        assert np.isfinite(record.ranges).all() and np.isfinite(record.pose).all()
 
 
 @settings(max_examples=300, deadline=None)

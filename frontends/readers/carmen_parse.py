@@ -32,9 +32,6 @@ from smokyslam.geometry import se2_between, wrap_angle
 
 logger = logging.getLogger(__name__)
 
-LASER_KINDS = ("FLASER", "ROBOTLASER1")
-"""The laser lines a log is read from."""
-
 MAX_RANGE_M = 1000.0
 """Beams longer than this (or negative) are no laser's reading: counted and left out."""
 
@@ -56,7 +53,7 @@ class LaserLog:
     laser_mount: np.ndarray
     bearings_rad: np.ndarray | None
     skipped_lines: int
-    kind: str = "FLASER"
+    kind: str
 
 
 @dataclass(frozen=True)
@@ -75,9 +72,9 @@ def _float_or(token: str, default: float) -> float:
         return default
 
 
-def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """Ranges (n,), pose (3,) and timestamp (NaN if unreadable) of one split ``FLASER`` line,
-    or None when malformed."""
+def _parse_flaser(tokens: list[str]) -> _Record | None:
+    """One split ``FLASER`` line (module docstring; its timestamp NaN if unreadable), or None
+    when malformed."""
     try:
         n = int(tokens[1])
         if n <= 0 or len(tokens) < 2 + n + 7:
@@ -87,7 +84,7 @@ def _parse_flaser(tokens: list[str]) -> tuple[np.ndarray, np.ndarray, float] | N
         return None
     if not np.all(np.isfinite(values)):
         return None
-    return values[:n], values[n:], _float_or(tokens[2 + n + 6], float("nan"))
+    return _Record(values[:n], values[n:], _float_or(tokens[2 + n + 6], float("nan")))
 
 
 def _parse_robotlaser(tokens: list[str]) -> _Record | None:
@@ -113,12 +110,16 @@ def _parse_robotlaser(tokens: list[str]) -> _Record | None:
     return _Record(ranges, poses[3:], stamp, poses[:3], (float(fan[0]), float(fan[2])))
 
 
+PARSERS = {"FLASER": _parse_flaser, "ROBOTLASER1": _parse_robotlaser}
+"""The laser lines a log is read from, by kind (``FLASER`` first: it wins a tie)."""
+
+
 def _read_records(path: Path) -> tuple[dict[str, list[_Record]], dict[str, int], float]:
     """Every laser line of ``path`` by kind, the malformed ones counted by kind, and the
     front laser offset (``PARAM robot_frontlaser_offset``, 0 when absent)."""
     opener = gzip.open if path.suffix == ".gz" else open
-    records: dict[str, list[_Record]] = {kind: [] for kind in LASER_KINDS}
-    skipped = dict.fromkeys(LASER_KINDS, 0)
+    records: dict[str, list[_Record]] = {kind: [] for kind in PARSERS}
+    skipped = dict.fromkeys(PARSERS, 0)
     offset = 0.0
     try:
         with opener(path, "rt", errors="replace") as stream:
@@ -131,13 +132,9 @@ def _read_records(path: Path) -> tuple[dict[str, list[_Record]], dict[str, int],
                     if len(tokens) >= 3 and tokens[1] == "robot_frontlaser_offset":
                         offset = _float_or(tokens[2], offset)
                     continue
-                if kind == "FLASER":
-                    parsed = _parse_flaser(tokens)
-                    record = None if parsed is None else _Record(*parsed)
-                elif kind == "ROBOTLASER1":
-                    record = _parse_robotlaser(tokens)
-                else:
+                if kind not in PARSERS:
                     continue
+                record = PARSERS[kind](tokens)
                 if record is None:
                     skipped[kind] += 1
                     logger.debug("%s:%d: malformed %s line skipped", path, number, kind)
@@ -173,7 +170,7 @@ def read_laser_log(path: Path, max_jump_m: float) -> LaserLog:
     counted and warned.
     """
     by_kind, malformed, front_offset_m = _read_records(path)
-    kind = max(LASER_KINDS, key=lambda k: len(by_kind[k]))  # FLASER first: wins a tie
+    kind = max(PARSERS, key=lambda k: len(by_kind[k]))  # the first kind wins a tie
     records = by_kind[kind]
     if not records:
         raise LogError(f"{path}: no FLASER or ROBOTLASER1 lines")
