@@ -21,6 +21,7 @@ import numpy as np
 
 from smokyslam.backends.noise import tangent_covariance
 from smokyslam.geometry import (
+    first_per_voxel,
     se2_between,
     se2_compose,
     se2_compose_with_covariance,
@@ -139,9 +140,5 @@ class Keyframer:
             sensor = se2_compose(in_latest, self._mount)[:2]
             origins.append(np.broadcast_to(sensor, (len(frame_points), 2)))
         xy, origin_xy = np.concatenate(points), np.concatenate(origins)
-        if voxel_m <= 0.0 or len(xy) == 0:
-            return xy, origin_xy
-        cells = np.floor(xy / voxel_m).astype(np.int64)
-        _, first = np.unique(cells, axis=0, return_index=True)
-        keep = np.sort(first)
+        keep = first_per_voxel(xy, voxel_m)
         return xy[keep], origin_xy[keep]

@@ -5,7 +5,11 @@ current estimate. The current submap is aligned to each by a Huber-weighted poin
 started from the odometry guess, in which points only correspond when they were seen from the
 same side of a surface (:mod:`smokyslam.backends.scan_match`); a match is kept only if enough
 points agree, the residual is small and ICP did not move far from the guess. A near match (ICP
-moved the guess little) needs fewer agreeing points than a far one. A far match must also be
+moved the guess little) needs fewer agreeing points than a far one. Two passes of one aisle in
+opposite directions see its two ends, so their 6 s submaps share too few points to verify;
+where the old submap alone does not verify, the current one is matched again to it joined with
+its stored neighbours on each side, placed by the current estimates (locally consistent:
+drift over a few seconds is small). A far match must also be
 the best fit around it: in an aisle or corridor of repeating structure ICP from a drifted guess
 stops at whichever copy it reaches first, so ICP is restarted from a ring of shifts around the
 match, and the match is dropped if an optimum elsewhere fits as well (:func:`best_rival`). Even
@@ -29,7 +33,7 @@ from smokyslam.backends.scan_match import (
     icp_2d,
     match_covariance,
 )
-from smokyslam.geometry import se2_between
+from smokyslam.geometry import first_per_voxel, se2_between, transform_points_2d
 
 if TYPE_CHECKING:
     from smokyslam.config import LoopClosureConfig
@@ -74,6 +78,8 @@ class LoopCloser:
         rival_sigma_m: float,
         normal_radius_m: float | None,
         match_sigmas_m: tuple[float, float],
+        target_neighbours: int = 0,
+        voxel_m: float = 0.1,
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
@@ -101,6 +107,8 @@ class LoopCloser:
         self._rival_sigma_m = rival_sigma_m
         self._normal_radius_m = normal_radius_m
         self._match_sigmas_m = match_sigmas_m
+        self._target_neighbours = target_neighbours
+        self._voxel_m = voxel_m
         self._submaps: dict[int, Scan] = {}
         self._last_closure = -(10**9)
 
@@ -139,22 +147,20 @@ class LoopCloser:
         near = near[np.argsort(distance[distance < self._search_radius_m])]
         best = None
         for old_index in near[: self._max_candidates]:
-            guess = se2_between(poses[old_index], poses[index])
-            result = icp_2d(submap, self._submaps[old_index], guess, self._inlier_distance_m)
-            correction = se2_between(guess, result.delta)
+            result, correction, target = self._match(submap, index, int(old_index), old, poses)
             if self._verified(result, correction) and (
                 best is None or result.rms_m < best[1].rms_m
             ):
-                best = (int(old_index), result, correction)
+                best = (int(old_index), result, correction, target)
         if best is None:
             return None
-        old_index, result, correction = best
-        if self._ambiguous(submap, self._submaps[old_index], result, correction):
+        old_index, result, correction, target = best
+        if self._ambiguous(submap, target, result, correction):
             logger.debug("loop closure %d -> %d dropped: a rival fits as well", old_index, index)
             return None
         covariance = match_covariance(
             submap,
-            self._submaps[old_index],
+            target,
             result.delta,
             self._inlier_distance_m,
             self._match_sigmas_m,
@@ -165,6 +171,43 @@ class LoopCloser:
         logger.debug("loop closure %d -> %d, rms %.3f m", old_index, index, result.rms_m)
         return LoopClosure(
             old_index, index, result.delta, covariance, result.inlier_fraction, result.rms_m
+        )
+
+    def _match(
+        self, submap: Scan, index: int, old_index: int, old: np.ndarray, poses: np.ndarray
+    ) -> tuple[IcpResult, np.ndarray, Scan]:
+        """ICP of keyframe ``index``'s ``submap`` onto old keyframe ``old_index``'s from the
+        odometry guess and, if that does not verify, onto it joined with its neighbours
+        (:meth:`_joined`). Returns the result, its correction of the guess and the target."""
+        guess = se2_between(poses[old_index], poses[index])
+        target = self._submaps[old_index]
+        result = icp_2d(submap, target, guess, self._inlier_distance_m)
+        correction = se2_between(guess, result.delta)
+        if self._target_neighbours > 0 and not self._verified(result, correction):
+            target = self._joined(old_index, old, poses)
+            result = icp_2d(submap, target, guess, self._inlier_distance_m)
+            correction = se2_between(guess, result.delta)
+        return result, correction, target
+
+    def _joined(self, old_index: int, old: np.ndarray, poses: np.ndarray) -> Scan:
+        """The submap of ``old_index`` joined with those of its ``target_neighbours`` stored
+        neighbours on each side among ``old`` (ascending keyframe indices), placed in its frame
+        by the current estimates ``poses`` and thinned to one point a voxel."""
+        at = int(np.searchsorted(old, old_index))
+        span = old[max(0, at - self._target_neighbours) : at + self._target_neighbours + 1]
+        scans = [self._submaps[int(k)] for k in span]
+        placed = [se2_between(poses[old_index], poses[k]) for k in span]
+        xy = np.concatenate(
+            [transform_points_2d(p, s.xy) for p, s in zip(placed, scans, strict=True)]
+        )
+        origins_xy = None
+        if all(s.origins_xy is not None for s in scans):
+            origins_xy = np.concatenate(
+                [transform_points_2d(p, s.origins_xy) for p, s in zip(placed, scans, strict=True)]
+            )
+        keep = first_per_voxel(xy, self._voxel_m)
+        return Scan(
+            xy[keep], None if origins_xy is None else origins_xy[keep], self._normal_radius_m
         )
 
     def _ambiguous(
@@ -206,8 +249,9 @@ def _shift_m(correction: np.ndarray) -> float:
     return float(np.hypot(correction[0], correction[1]))
 
 
-def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
-    """A LoopCloser with the search and verification settings of ``config``."""
+def get_loop_closer(config: LoopClosureConfig, voxel_m: float = 0.1) -> LoopCloser:
+    """A LoopCloser with the search and verification settings of ``config``; ``voxel_m``:
+    the submaps' thinning, also of joined targets."""
     return LoopCloser(
         search_radius_m=config.search_radius_m,
         min_index_gap=config.min_index_gap,
@@ -224,4 +268,6 @@ def get_loop_closer(config: LoopClosureConfig) -> LoopCloser:
         rival_sigma_m=config.rival_sigma_m,
         normal_radius_m=config.normal_radius_m,
         match_sigmas_m=config.match_sigmas_m,
+        target_neighbours=config.target_neighbours,
+        voxel_m=voxel_m,
     )

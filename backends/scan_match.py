@@ -84,13 +84,13 @@ class Scan:
     ) -> None:
         self.xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         self.tree = cKDTree(self.xy)
-        self._origins_xy = origins_xy
+        self.origins_xy = None if origins_xy is None else np.asarray(origins_xy, dtype=float)
         self._normal_radius_m = normal_radius_m
 
     @cached_property
     def normals(self) -> np.ndarray:
         """(N, 2) oriented unit normals, zero rows where none."""
-        return oriented_normals(self.xy, self._origins_xy, self._normal_radius_m)
+        return oriented_normals(self.xy, self.origins_xy, self._normal_radius_m)
 
     @cached_property
     def _padded_normals(self) -> np.ndarray:

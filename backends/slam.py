@@ -105,7 +105,9 @@ class SlamBackend:
         self._keyframer = Keyframer(
             get_keyframe_gate(config.keyframes), primary.pose_base_sensor, slam.submap_frames
         )
-        self._loops = get_loop_closer(backend.loop_closure) if loop_closures else None
+        self._loops = (
+            get_loop_closer(backend.loop_closure, slam.submap_voxel_m) if loop_closures else None
+        )
         self._loop_kernel = RobustKernel(backend.loop_closure.kernel)
         self._loop_width = backend.loop_closure.kernel_width
         self._camera_kernel = RobustKernel(backend.camera_gate.kernel)

@@ -142,6 +142,16 @@ def transform_points_2d(pose: np.ndarray, points_xy: np.ndarray) -> np.ndarray:
     return points_xy @ rotation_2d(pose[2]).T + np.asarray(pose[:2], dtype=float)
 
 
+def first_per_voxel(points: np.ndarray, voxel_m: float) -> np.ndarray:
+    """Ascending indices of the first of the (N, D) ``points`` in each cubic voxel of side
+    ``voxel_m`` (metres); all indices when ``voxel_m`` <= 0."""
+    points = np.asarray(points, dtype=float)
+    if voxel_m <= 0.0 or len(points) == 0:
+        return np.arange(len(points))
+    cells = np.floor(points / voxel_m).astype(np.int64)
+    return np.sort(np.unique(cells, axis=0, return_index=True)[1])
+
+
 def line_fit_2d(
     neighbours_xy: np.ndarray, weights: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
