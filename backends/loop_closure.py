@@ -40,6 +40,10 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 
+JOINED_REUSE_TOLERANCE = np.array([0.01, 0.01, 0.002])
+"""A joined target (metres, metres, radians) is built again only once one of its submaps'
+placements has moved more than this since it was built; its normals cost more than the ICP."""
+
 
 @dataclass(frozen=True)
 class LoopClosure:
@@ -110,6 +114,7 @@ class LoopCloser:
         self._target_neighbours = target_neighbours
         self._voxel_m = voxel_m
         self._submaps: dict[int, Scan] = {}
+        self._joined_cache: dict[int, tuple[np.ndarray, np.ndarray, Scan]] = {}
         self._last_closure = -(10**9)
 
     def check(
@@ -195,8 +200,15 @@ class LoopCloser:
         by the current estimates ``poses`` and thinned to one point a voxel."""
         at = int(np.searchsorted(old, old_index))
         span = old[max(0, at - self._target_neighbours) : at + self._target_neighbours + 1]
+        placed = np.array([se2_between(poses[old_index], poses[k]) for k in span])
+        cached = self._joined_cache.get(old_index)
+        if (
+            cached is not None
+            and np.array_equal(cached[0], span)
+            and np.all(np.abs(cached[1] - placed) <= JOINED_REUSE_TOLERANCE)
+        ):
+            return cached[2]
         scans = [self._submaps[int(k)] for k in span]
-        placed = [se2_between(poses[old_index], poses[k]) for k in span]
         xy = np.concatenate(
             [transform_points_2d(p, s.xy) for p, s in zip(placed, scans, strict=True)]
         )
@@ -206,9 +218,11 @@ class LoopCloser:
                 [transform_points_2d(p, s.origins_xy) for p, s in zip(placed, scans, strict=True)]
             )
         keep = first_per_voxel(xy, self._voxel_m)
-        return Scan(
+        joined = Scan(
             xy[keep], None if origins_xy is None else origins_xy[keep], self._normal_radius_m
         )
+        self._joined_cache[old_index] = (span, placed, joined)
+        return joined
 
     def _ambiguous(
         self, submap: Scan, old: Scan, result: IcpResult, correction: np.ndarray
