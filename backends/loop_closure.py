@@ -82,8 +82,8 @@ class LoopCloser:
         rival_sigma_m: float,
         normal_radius_m: float | None,
         match_sigmas_m: tuple[float, float],
-        target_neighbours: int = 0,
-        voxel_m: float = 0.1,
+        target_neighbours: int,
+        voxel_m: float,
     ) -> None:
         """max_correction: largest (metres, radians) ICP may move away from the odometry guess.
         min_spacing: keyframes to wait after an accepted closure before looking again.
@@ -263,7 +263,7 @@ def _shift_m(correction: np.ndarray) -> float:
     return float(np.hypot(correction[0], correction[1]))
 
 
-def get_loop_closer(config: LoopClosureConfig, voxel_m: float = 0.1) -> LoopCloser:
+def get_loop_closer(config: LoopClosureConfig, voxel_m: float) -> LoopCloser:
     """A LoopCloser with the search and verification settings of ``config``; ``voxel_m``:
     the submaps' thinning, also of joined targets."""
     return LoopCloser(

@@ -5,10 +5,12 @@ import numpy as np
 
 from smokyslam.backends.loop_closure import get_loop_closer
 from smokyslam.backends.scan_match import Scan, icp_2d
-from smokyslam.config import LoopClosureConfig
+from smokyslam.config import LoopClosureConfig, SlamConfig
 from smokyslam.geometry import se2_between, se2_compose, se2_inverse, transform_points_2d
 
 SUBMAP_RANGE_M = 6.0
+VOXEL_M = SlamConfig().submap_voxel_m
+"""The run's submap thinning, which joined loop-closure targets share."""
 
 
 def world_points(seed: int = 0) -> np.ndarray:
@@ -82,7 +84,7 @@ def test_closer_finds_revisits_with_accurate_relative_poses():
     rng = np.random.default_rng(2)
     truth = out_and_back()
     estimate = drifted(truth)
-    closer = get_loop_closer(LoopClosureConfig(min_index_gap=20, min_spacing=3))
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=20, min_spacing=3), VOXEL_M)
     closures = []
     for k in range(len(truth)):
         found = closer.check(k, estimate[: k + 1], submap(truth[k], rng))
@@ -105,7 +107,7 @@ def test_closer_finds_revisits_with_accurate_relative_poses():
 def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
     rng = np.random.default_rng(3)
     truth = out_and_back()
-    closer = get_loop_closer(LoopClosureConfig(min_index_gap=30))
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=30), VOXEL_M)
     old = truth[0]
     closer.check(0, truth[:1], submap(old, rng))
     # Too recent: the same place again one keyframe later.
@@ -118,12 +120,12 @@ def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
     poses[39] = [12.0, 8.0, 0.0]
     assert closer.check(39, poses, submap(poses[39], rng)) is None
     # A right match that needs a larger correction than allowed.
-    strict = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=0.1))
+    strict = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=0.1), VOXEL_M)
     strict.check(0, truth[:1], submap(old, rng))
     poses = np.array([old] * 40)
     actual = se2_compose(old, [0.4, 0.2, 0.0])
     assert strict.check(39, poses, submap(actual, rng)) is None
-    relaxed = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=1.0))
+    relaxed = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=1.0), VOXEL_M)
     relaxed.check(0, truth[:1], submap(old, rng))
     found = relaxed.check(39, poses, submap(actual, rng))
     assert found is not None
@@ -142,7 +144,7 @@ def test_a_near_closure_needs_less_overlap_than_a_far_one():
     walls = submap(old, rng, count=300)
     clutter = rng.uniform(-6.0, 6.0, (300, 2))
     for offset, taken in [([0.05, 0.0, 0.0], True), ([0.5, 0.0, 0.0], False)]:
-        closer = get_loop_closer(LoopClosureConfig(min_index_gap=30))
+        closer = get_loop_closer(LoopClosureConfig(min_index_gap=30), VOXEL_M)
         closer.check(0, old[None], submap(old, rng, count=600))
         poses = np.array([old] * 40)
         poses[39] = se2_compose(old, offset)
@@ -183,13 +185,13 @@ def test_a_far_match_onto_a_repeating_copy_is_dropped():
     poses = np.array([old] * 40)
     poses[39] = se2_compose(old, [0.6, 0.0, 0.0])
     for radii, taken in [((), True), ((0.5, 1.0), False)]:
-        closer = get_loop_closer(LoopClosureConfig(min_index_gap=30, rival_radii_m=radii))
+        closer = get_loop_closer(LoopClosureConfig(min_index_gap=30, rival_radii_m=radii), VOXEL_M)
         closer.check(0, old[None], aisle_submap(old))
         closure = closer.check(39, poses, aisle_submap(old))
         assert (closure is not None) is taken
         if taken:  # the slid copy: a metre off the truth (the same place)
             assert abs(abs(closure.delta[0]) - 1.0) < 0.05
-    closer = get_loop_closer(LoopClosureConfig(min_index_gap=30))
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=30), VOXEL_M)
     old = np.array([5.0, 3.0, 0.3])
     closer.check(0, old[None], submap(old, rng, count=600))
     poses = np.array([old] * 40)
@@ -227,7 +229,7 @@ def test_a_match_of_a_racks_two_faces_is_refused():
     poses[39] = north - [0.0, 1.0, 0.0]  # odometry drifted a metre south
     for normal_radius_m, taken in [(None, True), (1.0, False)]:
         config = LoopClosureConfig(min_index_gap=30, normal_radius_m=normal_radius_m)
-        closer = get_loop_closer(config)
+        closer = get_loop_closer(config, VOXEL_M)
         closer.check(0, south[None], *seen_from(south, south_view))
         closure = closer.check(39, poses, *seen_from(north, north_view))
         assert (closure is not None) is taken
@@ -256,7 +258,7 @@ def test_a_small_old_submap_is_matched_joined_with_its_neighbours():
     for neighbours in (0, 2):
         rng = np.random.default_rng(8)
         config = LoopClosureConfig(min_index_gap=5, target_neighbours=neighbours)
-        closer = get_loop_closer(config)
+        closer = get_loop_closer(config, VOXEL_M)
         for k, pose in enumerate(east):
             assert closer.check(k, east[: k + 1], seen(pose, 4.0, 200)) is None
         closure = closer.check(10, poses, seen(back, 8.0, 500))
@@ -273,7 +275,7 @@ def test_a_joined_target_follows_its_submaps_placements():
     again once the estimate moves one of them (here by 0.5 m after, say, a loop closure)."""
     rng = np.random.default_rng(9)
     east = np.stack([2.0 + 1.5 * np.arange(5), np.full(5, 3.0), np.zeros(5)], axis=1)
-    closer = get_loop_closer(LoopClosureConfig(min_index_gap=1, target_neighbours=2))
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=1, target_neighbours=2), VOXEL_M)
     for k, pose in enumerate(east):
         closer.check(k, east[: k + 1], submap(pose, rng))
     old = np.arange(5)
