@@ -19,6 +19,7 @@ so a wrong match can slip through, so the caller adds the result with a robust k
 from __future__ import annotations
 
 import logging
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -33,7 +34,7 @@ from smokyslam.backends.scan_match import (
     icp_2d,
     match_covariance,
 )
-from smokyslam.geometry import first_per_voxel, se2_between, transform_points_2d
+from smokyslam.geometry import first_per_voxel, se2_between, transform_points_2d, wrap_angle
 
 if TYPE_CHECKING:
     from smokyslam.config import LoopClosureConfig
@@ -43,6 +44,10 @@ logger = logging.getLogger(__name__)
 JOINED_REUSE_TOLERANCE = np.array([0.01, 0.01, 0.002])
 """A joined target (metres, metres, radians) is built again only once one of its submaps'
 placements has moved more than this since it was built; its normals cost more than the ICP."""
+
+JOINED_CACHE_SIZE = 32
+"""Joined targets kept (the most recently used): the same few old keyframes are candidates for
+several new keyframes in a row, so a small cache serves them and memory stays bounded."""
 
 
 @dataclass(frozen=True)
@@ -114,7 +119,7 @@ class LoopCloser:
         self._target_neighbours = target_neighbours
         self._voxel_m = voxel_m
         self._submaps: dict[int, Scan] = {}
-        self._joined_cache: dict[int, tuple[np.ndarray, np.ndarray, Scan]] = {}
+        self._joined_cache: OrderedDict[int, tuple[np.ndarray, np.ndarray, Scan]] = OrderedDict()
         self._last_closure = -(10**9)
 
     def check(
@@ -202,12 +207,12 @@ class LoopCloser:
         span = old[max(0, at - self._target_neighbours) : at + self._target_neighbours + 1]
         placed = np.array([se2_between(poses[old_index], poses[k]) for k in span])
         cached = self._joined_cache.get(old_index)
-        if (
-            cached is not None
-            and np.array_equal(cached[0], span)
-            and np.all(np.abs(cached[1] - placed) <= JOINED_REUSE_TOLERANCE)
-        ):
-            return cached[2]
+        if cached is not None and np.array_equal(cached[0], span):
+            moved = np.abs(cached[1] - placed)
+            moved[:, 2] = np.abs(wrap_angle(moved[:, 2]))
+            if np.all(moved <= JOINED_REUSE_TOLERANCE):
+                self._joined_cache.move_to_end(old_index)
+                return cached[2]
         scans = [self._submaps[int(k)] for k in span]
         xy = np.concatenate(
             [transform_points_2d(p, s.xy) for p, s in zip(placed, scans, strict=True)]
@@ -222,6 +227,9 @@ class LoopCloser:
             xy[keep], None if origins_xy is None else origins_xy[keep], self._normal_radius_m
         )
         self._joined_cache[old_index] = (span, placed, joined)
+        self._joined_cache.move_to_end(old_index)
+        while len(self._joined_cache) > JOINED_CACHE_SIZE:
+            self._joined_cache.popitem(last=False)
         return joined
 
     def _ambiguous(

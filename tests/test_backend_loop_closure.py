@@ -3,7 +3,7 @@ recent keyframes, wrong places and large corrections."""
 
 import numpy as np
 
-from smokyslam.backends.loop_closure import get_loop_closer
+from smokyslam.backends.loop_closure import JOINED_CACHE_SIZE, get_loop_closer
 from smokyslam.backends.scan_match import Scan, icp_2d
 from smokyslam.config import LoopClosureConfig, SlamConfig
 from smokyslam.geometry import se2_between, se2_compose, se2_inverse, transform_points_2d
@@ -291,3 +291,24 @@ def test_a_joined_target_follows_its_submaps_placements():
     assert len(again.xy) >= len(first.xy)
     shift = again.tree.query(first.xy)[0]
     assert np.median(shift) < 0.01 and np.percentile(shift, 95) > 0.1
+
+
+def test_a_joined_target_survives_a_heading_across_the_half_turn_and_the_cache_is_bounded():
+    """A placement whose heading crosses +-180 deg by 0.06 deg is the same placement; the
+    cache keeps only the most recently used joined targets."""
+    rng = np.random.default_rng(10)
+    count = JOINED_CACHE_SIZE + 8
+    line = np.stack([2.0 + 0.4 * np.arange(count), np.full(count, 3.0), np.zeros(count)], axis=1)
+    line[4, 2] = np.pi - 0.0005
+    closer = get_loop_closer(LoopClosureConfig(min_index_gap=1, target_neighbours=2), VOXEL_M)
+    for k, pose in enumerate(line):
+        closer.check(k, line[: k + 1], submap(pose, rng))
+    old = np.arange(count)
+    first = closer._joined(2, old, line)
+    across = line.copy()
+    across[4, 2] = -np.pi + 0.0005
+    assert closer._joined(2, old, across) is first
+    for k in range(count):
+        closer._joined(k, old, line)
+    assert len(closer._joined_cache) == JOINED_CACHE_SIZE
+    assert closer._joined(count - 1, old, line) is closer._joined(count - 1, old, line)
