@@ -294,8 +294,8 @@ def test_a_joined_target_follows_its_submaps_placements():
 
 
 def test_a_joined_target_survives_a_heading_across_the_half_turn_and_the_cache_is_bounded():
-    """A placement whose heading crosses +-180 deg by 0.06 deg is the same placement; the
-    cache keeps only the most recently used joined targets."""
+    """A placement whose heading crosses +-180 deg (a 0.06 deg move) is the same placement;
+    the cache keeps only the most recently used joined targets."""
     rng = np.random.default_rng(10)
     count = JOINED_CACHE_SIZE + 8
     line = np.stack([2.0 + 0.4 * np.arange(count), np.full(count, 3.0), np.zeros(count)], axis=1)
@@ -310,5 +310,5 @@ def test_a_joined_target_survives_a_heading_across_the_half_turn_and_the_cache_i
     assert closer._joined(2, old, across) is first
     for k in range(count):
         closer._joined(k, old, line)
-    assert len(closer._joined_cache) == JOINED_CACHE_SIZE
+    assert list(closer._joined_cache) == list(range(count - JOINED_CACHE_SIZE, count))
     assert closer._joined(count - 1, old, line) is closer._joined(count - 1, old, line)
