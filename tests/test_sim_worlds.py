@@ -85,6 +85,17 @@ def test_a_corridor_side_room_that_fits_exactly_is_built():
     assert world.spec.shape != generate_world("corridor", 10061, CONFIG).spec.shape
 
 
+@pytest.mark.parametrize("name", WORLD_NAMES)
+def test_walls_lie_on_the_lattice_maps_are_built_on(name):
+    """Every world's grid starts on a multiple of its resolution, so its walls lie on the cell
+    lines of the maps the pipeline builds (anchored at the world origin). Corridors 5 and 11
+    were an odd number of cells wide and put every wall half a cell off."""
+    for seed in (5, 11, 12, 10122, 10124):
+        origin = np.asarray(generate_world(name, seed, CONFIG).spec.origin_xy_m)
+        cells = origin / CONFIG.resolution_m
+        assert np.allclose(cells, np.round(cells), atol=1e-6), (name, seed, origin)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_office_size_rooms_doors_and_furniture(seed):
     world = generate_world("office", seed, CONFIG)

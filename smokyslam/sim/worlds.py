@@ -187,7 +187,9 @@ def _warehouse(draw: _Draw) -> _Layout:
 def _corridor(draw: _Draw) -> _Layout:
     """A long corridor with right-angle bends, side rooms, and wall cabinets along it."""
     wall = max(draw.res, draw.snap(float(draw.rng.choice([0.1, 0.2]))))
-    half = 0.5 * draw.length(2.0, 2.6)
+    # Half the width on the grid too (every layout coordinate is): an odd number of cells
+    # across put every wall half a cell off the lattice that maps are built on.
+    half = draw.snap(0.5 * draw.length(2.0, 2.6))
     layout = _Layout(wall, (1.5 + 0.5 * draw.res, 0.5 * draw.res, 0.0))
     segments: list[tuple[_Rect, bool]] = []  # (corridor rectangle, runs along x)
     px = py = 0.0
