@@ -161,6 +161,11 @@ def test_training_writes_its_outputs_and_resumes_to_the_same_weights(tmp_path, p
     assert [h["epoch"] for h in record["history"]] == [1, 2]
     assert all(0.0 <= h["val_error_index"] <= 1.0 for h in record["history"])
     assert record["command"].startswith("smokyslam train-upsampler --out")
+    assert "the last of 2 epochs" in straight.stdout
+    # The weights written are the last epoch's averaged generator, as checkpointed.
+    last = torch.load(tmp_path / "straight.ckpt", weights_only=False)["average"]
+    written = torch.load(tmp_path / "straight.pt", weights_only=True)["state_dict"]
+    assert written.keys() == last.keys() and all(torch.equal(written[k], last[k]) for k in last)
     # One epoch, then a resumed second: the same weights as two straight epochs.
     assert _train(tmp_path, pairs, "halves.pt", epochs=1).returncode == 0
     resumed = _train(tmp_path, pairs, "halves.pt", "--resume")

@@ -82,12 +82,9 @@ def train_upsampler(
     total = cfg.upsample.training.epochs * cfg.upsample.training.steps_per_epoch
     with progress_bar("training the up-sampler", total, unit="items") as update:
         result = trainer.train(resume, on_progress=lambda done, n, status: update(done, n, status))
-    from smokyslam.upsample.training_outputs import selection_key
-
-    best = min(result.history, key=selection_key)
     scores = result.calibrated
     typer.echo(
-        f"wrote {result.weights_path}: epoch {best['epoch']} of {len(result.history)}, "
+        f"wrote {result.weights_path}: the last of {len(result.history)} epochs, "
         f"validation error index {scores['val_error_index']:.3f} "
         f"(sparse {scores['val_sparse_error_index']:.3f}), occupied F1 "
         f"{scores['val_occupied_f1']:.3f} (sparse {scores['val_sparse_occupied_f1']:.3f}); "

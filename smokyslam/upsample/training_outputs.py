@@ -1,5 +1,4 @@
-"""What training leaves beside the weights (paths, the history as JSON, a loss plot), and how
-its best epoch is chosen."""
+"""What training leaves beside the weights: paths, the history as JSON, a loss plot."""
 
 from __future__ import annotations
 
@@ -18,16 +17,6 @@ def artefact_paths(out: Path) -> dict[str, Path]:
         "plot": stem.with_name(stem.name + ".loss.png"),
         "data": stem.with_name(stem.name + ".data"),
     }
-
-
-def selection_key(scores: dict[str, float]) -> tuple[float, float]:
-    """Smaller is better. An epoch whose dense maps find walls at least as well as the sparse
-    ones (occupied F1) ranks by its error index; one that does not ranks after all of those,
-    by F1. (A map of free space alone scores a low error index, walls being few: it is not
-    what the up-sampler is for.)"""
-    if scores["val_occupied_f1"] >= scores["val_sparse_occupied_f1"]:
-        return (0.0, scores["val_error_index"])
-    return (1.0, -scores["val_occupied_f1"])
 
 
 def write_history(path: Path, record: dict[str, Any]) -> Path:
