@@ -23,9 +23,10 @@ validation error index of the raw generator swung between 0.048 and 0.106 over e
 the average does not. Inference adds ``-log(occupied_weight)`` to the logits (``weights.py``).
 
 The weights written are the last epoch's average, not the best-validating epoch's: over six
-validation worlds a single epoch's error index can dip (0.053 -> 0.045 -> 0.046 in one run, 0.065
--> 0.050 -> 0.062 in another), and the networks of those dips found fewer corridor walls on
-unseen worlds (mean occupied F1 of 38 unseen maps 0.79 against 0.81-0.82 for the last epochs).
+validation worlds the error index can dip for an epoch or a few (0.065 -> 0.050 -> 0.062 at
+epoch 12 of one run, 0.053 -> 0.045-0.046 over epochs 22-25 of another), and the networks of
+those dips found fewer corridor walls on unseen worlds (mean occupied F1 of 38 unseen maps 0.79
+against 0.81-0.82 for the last epochs of the same runs).
 The per-epoch validation stays in the history, to watch.
 
 Training is deterministic for a seed on CPU (fixed thread count, deterministic algorithms,
