@@ -58,10 +58,10 @@ def test_map_upsample_writes_the_dense_map_beside_the_sparse_one(mapped):
         assert set(maps[name]) == FIVE | {"observed"} and set(maps[name]["observed"]) == FIVE
     sparse, dense = maps["radar_sparse"]["observed"], maps["radar_dense"]["observed"]
     # On a world it never saw, up-sampling halves the error index (the paper: 0.39 x;
-    # measured 0.28 x). Its walls are fewer than the sparse map's stray returns: occupied F1
-    # measured 0.49 against 0.52 (issue 11's "F1 above sparse" is not met on this world).
+    # measured 0.26 x) and finds walls better than the sparse map (occupied F1 measured 0.60
+    # against 0.52; 0.57 with the weights shipped before stop 56).
     assert dense["error_index"] <= 0.5 * sparse["error_index"]
-    assert dense["occupied_f1"] > 0.85 * sparse["occupied_f1"]
+    assert dense["occupied_f1"] > sparse["occupied_f1"]
 
 
 def test_upsample_command_gan_beats_classical(mapped, unseen_log, tmp_path):
@@ -86,8 +86,8 @@ def test_upsample_command_gan_beats_classical(mapped, unseen_log, tmp_path):
         sparse = metrics["maps"]["radar_sparse"]["observed"]
     assert scores["classical"]["error_index"] < sparse["error_index"]
     assert scores["gan"]["error_index"] < 0.8 * scores["classical"]["error_index"]
-    # F1: measured 0.49 (GAN), 0.53 (classical), 0.52 (sparse); see above.
-    assert scores["gan"]["occupied_f1"] > 0.85 * scores["classical"]["occupied_f1"]
+    # F1: measured 0.60 (GAN), 0.53 (classical), 0.52 (sparse); see above.
+    assert scores["gan"]["occupied_f1"] > scores["classical"]["occupied_f1"]
     # The map up-sampled from the file equals the one map --upsample wrote.
     from_file = load_map(tmp_path / "gan/maps/radar_dense.yaml").cells
     assert np.array_equal(from_file, load_map(mapped / "maps/radar_dense.yaml").cells)
