@@ -13,8 +13,9 @@ from typing import TYPE_CHECKING
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import X
+from gtsam.symbol_shorthand import B, X
 
+from smokyslam.backends.gyro import gyro_turn_factor
 from smokyslam.backends.noise import RobustKernel, pose2_noise
 from smokyslam.errors import EstimationError
 
@@ -71,6 +72,11 @@ class PoseGraph:
         self._optimized: set[int] = set()
         self._pending_loop = False
         self._estimates: np.ndarray | None = None
+        self._biases: dict[int, int] = {}  # keyframe -> the key of its gyro bias B(key)
+        self._bias_key: int | None = None  # the current span's
+        self._bias_elapsed_s = 0.0
+        self._bias_prior: tuple[float, float] | None = None  # (mean, sigma) to place next
+        self._bias_prior_index: int | None = None  # iSAM2's index of the one in place
         self.factor_counts: Counter[str] = Counter()
         """Factors added per source ("prior", "radar", "doppler", "camera", "loop", ...)."""
 
@@ -119,6 +125,67 @@ class PoseGraph:
         self._new_factors.add(gtsam.BetweenFactorPose2(X(i), X(j), _pose2(delta), noise))
         self.factor_counts[source] += 1
 
+    def add_gyro_turn(
+        self,
+        i: int,
+        j: int,
+        turn_rad: float | None,
+        dt_s: float,
+        sigma_rad: float,
+        bias_walk: float,
+        first_bias_sigma_radps: float,
+        bias_span_s: float = 30.0,
+    ) -> None:
+        """Hold the turn from pose ``i`` to pose ``j`` to the gyro's raw ``turn_rad`` less
+        the bias x ``dt_s`` (``backends/gyro.py``). The bias is one variable for every
+        ``bias_span_s`` seconds of keyframes, B(first keyframe of the span); each follows the
+        one before within a random walk of ``bias_walk`` rad/s per sqrt(s). The first gets a
+        zero-mean prior of ``first_bias_sigma_radps``. ``turn_rad`` None (no gyro over the
+        pair): the turn is left to the other factors."""
+        if self._bias_key is None:
+            self._bias_key = i
+            self._new_values.insert(B(i), np.zeros(1))
+            prior = gtsam.noiseModel.Isotropic.Sigma(1, first_bias_sigma_radps)
+            self._new_factors.add(gtsam.PriorFactorVector(B(i), np.zeros(1), prior))
+            self._biases[i] = i
+        self._bias_elapsed_s += dt_s
+        if self._bias_elapsed_s >= bias_span_s:  # a new span: its bias walks from the last
+            walk = gtsam.noiseModel.Isotropic.Sigma(1, bias_walk * np.sqrt(self._bias_elapsed_s))
+            self._new_values.insert(B(i), self._bias(self._bias_key))
+            self._new_factors.add(
+                gtsam.BetweenFactorVector(B(self._bias_key), B(i), np.zeros(1), walk)
+            )
+            self._bias_key, self._bias_elapsed_s = i, dt_s
+        self._biases[i] = self._biases[j] = self._bias_key
+        if turn_rad is not None:
+            point = gtsam.Values()
+            point.insert(X(i), _pose2(self.estimate(i)))
+            point.insert(X(j), _pose2(self.estimate(j)))
+            point.insert(B(self._bias_key), self._bias(self._bias_key))
+            keys = (X(i), X(j), B(self._bias_key))
+            self._new_factors.add(gyro_turn_factor(keys, point, turn_rad, dt_s, sigma_rad))
+            self.factor_counts["gyro"] += 1
+
+    def hold_gyro_bias(self, mean_radps: float, sigma_radps: float) -> None:
+        """A prior on the current gyro bias at the next ``optimize``, replacing the one
+        placed before: a running estimate from elsewhere (the radar odometry's), each a
+        better version of the last rather than a new measurement."""
+        if self._bias_key is not None:
+            self._bias_prior = (float(mean_radps), float(sigma_radps))
+
+    def _bias(self, index: int) -> np.ndarray:
+        """(1,) current estimate of the gyro bias B(index) (initial guess if pending)."""
+        if self._new_values.exists(B(index)):
+            return self._new_values.atVector(B(index))
+        return np.asarray(self._isam.calculateEstimateVector(B(index)))
+
+    def gyro_bias(self, index: int) -> float | None:
+        """Optimized gyro bias (rad/s) of keyframe ``index``, None without one."""
+        key = self._biases.get(index)
+        if key is None or self._new_values.exists(B(key)):
+            return None
+        return float(self._isam.calculateEstimateVector(B(key))[0])
+
     def _insert(self, index: int, pose: np.ndarray) -> None:
         self._new_values.insert(X(index), _pose2(pose))
         self._pending_keys.add(index)
@@ -131,12 +198,23 @@ class PoseGraph:
         After a loop closure (a factor between two existing, non-consecutive poses) a few
         more updates let iSAM2 relinearise the moved part of the trajectory.
         """
-        constrained = {gtsam.Symbol(k).index() for k in self._new_factors.keyVector()}
+        symbols = [gtsam.Symbol(k) for k in self._new_factors.keyVector()]
+        constrained = {x.index() for x in symbols if x.chr() == ord("x")}
         unlinked = self._pending_keys - constrained
         if unlinked:
             raise EstimationError(f"poses {sorted(unlinked)} have no factor; link each new pose")
+        remove = []
+        if self._bias_prior is not None:  # swap in the newest bias prior
+            mean, sigma = self._bias_prior
+            noise = gtsam.noiseModel.Isotropic.Sigma(1, sigma)
+            prior_at = self._new_factors.size()
+            self._new_factors.add(gtsam.PriorFactorVector(B(self._bias_key), [mean], noise))
+            remove = [] if self._bias_prior_index is None else [self._bias_prior_index]
         try:
-            self._isam.update(self._new_factors, self._new_values)
+            result = self._isam.update(self._new_factors, self._new_values, remove)
+            if self._bias_prior is not None:
+                self._bias_prior_index = result.getNewFactorsIndices()[prior_at]
+                self._bias_prior = None
             for _ in range(self._loop_closure_iterations if self._pending_loop else 0):
                 self._isam.update()
         except RuntimeError as exc:  # gtsam's text spans paragraphs: its first one says it

@@ -6,12 +6,16 @@ between factor (steps composed with their covariance, never identity). Switched 
 
 - camera factors: a camera between factor for a radar keyframe pair once the camera has seen
   past it (when healthy, metric and consistent with radar: ``camera_factors.py``);
-- loop closures: the keyframe's radar submap matched against old ones (robust kernel).
+- loop closures: the keyframe's radar submap matched against old ones (robust kernel);
+- gyro factors: the gyro's turn over each keyframe pair, less a bias the graph estimates
+  (``gyro.py``; ``slam.gyro_factors``).
 
-One iSAM2 update per keyframe. With neither switched on the graph is a chain and reproduces
-the odometry exactly. Doppler and gyro enter only through the radar odometry's step: it
-already solved them jointly with scan matching, so a separate velocity factor over the same
-interval would count that information twice.
+One iSAM2 update per keyframe. With none switched on the graph is a chain and reproduces
+the odometry exactly. Doppler enters only through the radar odometry's step: it already
+solved it jointly with scan matching, so a separate velocity factor over the same interval
+would count that information twice. The gyro is in the radar step too, as the prior of each
+frame's match with the bias estimated so far; the gyro factors give the graph its turns again
+with the bias left to hindsight.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
+from smokyslam.backends.gyro import GyroTurns
 from smokyslam.backends.keyframes import Keyframe, Keyframer, get_keyframe_gate
 from smokyslam.backends.loop_closure import get_loop_closer
 from smokyslam.backends.noise import RobustKernel
@@ -30,7 +35,7 @@ from smokyslam.backends.scale import ScaleEstimator
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
 from smokyslam.geometry import se2_compose
-from smokyslam.types import Odometry, StepPairs
+from smokyslam.types import ImuSample, Odometry, StepPairs
 
 logger = logging.getLogger(__name__)
 
@@ -87,8 +92,9 @@ class _Pair:
 
 class SlamBackend:
     """The pose graph and its feeders. Verbs: ``add_odometry`` per primary frame,
-    ``add_camera`` per camera frame (time order); ``poses_world_base`` for every primary frame
-    so far, ``keyframe_poses`` for every keyframe."""
+    ``add_camera`` per camera frame, ``add_imu`` per IMU sample (time order, the IMU ahead of
+    the frames it spans); ``poses_world_base`` for every primary frame so far,
+    ``keyframe_poses`` for every keyframe."""
 
     def __init__(
         self,
@@ -96,8 +102,10 @@ class SlamBackend:
         primary: Primary,
         T_base_camera: np.ndarray | None,
         loop_closures: bool,
+        gyro_factors: bool = False,
     ) -> None:
-        """``T_base_camera``: (4, 4) camera mount for camera factors, None for none."""
+        """``T_base_camera``: (4, 4) camera mount for camera factors, None for none.
+        ``gyro_factors``: the gyro's turns join the graph (``add_imu`` feeds them)."""
         backend, slam = config.backend, config.slam
         self._slam = slam
         self._primary = primary
@@ -115,6 +123,7 @@ class SlamBackend:
         self._camera: CameraFactorMaker | None = None
         if T_base_camera is not None:
             self._camera = get_camera_factor_maker(backend, slam, T_base_camera)
+        self._gyro = GyroTurns() if gyro_factors else None
         self._pending: list[_Pair] = []
         self._last_keyframe: tuple[int, float] | None = None
         self.frame_stamps_s: list[float] = []
@@ -135,6 +144,12 @@ class SlamBackend:
     @property
     def factor_counts(self) -> dict[str, int]:
         return dict(self._graph.factor_counts)
+
+    @property
+    def gyro_bias_radps(self) -> float | None:
+        """The graph's gyro bias at the latest keyframe (rad/s), None without gyro factors."""
+        n = len(self.keyframe_stamps_s)
+        return self._graph.gyro_bias(n - 1) if self._gyro is not None and n else None
 
     @property
     def camera_pairs(self) -> dict[str, int]:
@@ -182,6 +197,11 @@ class SlamBackend:
                 covariance,
                 source=self._primary.name,
             )
+            if self._gyro is not None:
+                self._add_gyro_turn(
+                    previous_index, keyframe.index, previous_stamp_s, keyframe.stamp_s
+                )
+                self._hold_gyro_bias(odometry)
             if self._camera is not None:
                 pair = _Pair(
                     keyframe.index, previous_stamp_s, keyframe.stamp_s, keyframe.delta, covariance
@@ -193,6 +213,11 @@ class SlamBackend:
         self._close_loop(keyframe.index)
         self.status.keyframes = keyframe.index + 1
         return keyframe
+
+    def add_imu(self, sample: ImuSample) -> None:
+        """One IMU sample; its gyro feeds the gyro factors (nothing without them)."""
+        if self._gyro is not None:
+            self._gyro.add(sample)
 
     def add_camera(self, result: CameraOdometryResult) -> float:
         """One camera odometry frame; completes the keyframe pairs it has seen past. Returns
@@ -271,6 +296,27 @@ class SlamBackend:
                 source="camera",
             )
             self.keyframe_camera[pair.index] = True
+
+    def _add_gyro_turn(self, i: int, j: int, start_s: float, end_s: float) -> None:
+        slam = self._slam
+        self._graph.add_gyro_turn(
+            i,
+            j,
+            self._gyro.turn(start_s, end_s),
+            end_s - start_s,
+            np.radians(slam.gyro_turn_sigma_deg),
+            np.radians(slam.gyro_bias_walk_degps),
+            np.radians(slam.gyro_bias_sigma_degps),
+            slam.gyro_bias_span_s,
+        )
+
+    def _hold_gyro_bias(self, odometry: Odometry) -> None:
+        """The radar odometry's running bias estimate, where it makes one, as a prior on the
+        graph's (``slam.gyro_bias_prior``)."""
+        extra = odometry.health.extra
+        if self._slam.gyro_bias_prior and "gyro_bias_radps" in extra:
+            sigma = extra["gyro_bias_sigma_radps"] * self._slam.gyro_bias_prior_scale
+            self._graph.hold_gyro_bias(extra["gyro_bias_radps"], sigma)
 
     def _close_loop(self, index: int) -> None:
         if self._loops is None or index % self._slam.loop_check_every:

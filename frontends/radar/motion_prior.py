@@ -176,6 +176,14 @@ class MotionPriorEstimator:
             config.heading_decorrelation_s,
         )
 
+    @property
+    def bias_sigma_radps(self) -> float:
+        """Sigma of the bias in use: the map-age fit's once it has replaced the filter's,
+        else the heading filter's."""
+        if self.map_age is not None and self.map_age.bias_radps is not None:
+            return float(self.map_age.sigma_radps)
+        return float(np.sqrt(self.heading.covariance[1, 1]))
+
     def predict(self, scan: RadarScan, imu: Iterable[ImuSample] = ()) -> MotionPrior:
         """The step from the previous frame to ``scan`` (zero for the first frame)."""
         config = self._config

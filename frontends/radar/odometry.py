@@ -142,15 +142,22 @@ class RadarOdometry:
                         float(result.pose_world_sensor[2]),
                         result.map_age,
                     )
-        return [_odometry(p, r) for p, r in zip(batch, results, strict=True)]
+        extra = {}
+        if self._prior.estimates_bias:  # where the bias estimate stands after this batch
+            extra = {
+                "gyro_bias_radps": float(self._prior.heading.bias_radps),
+                "gyro_bias_sigma_radps": self._prior.bias_sigma_radps,
+            }
+        return [_odometry(p, r, extra) for p, r in zip(batch, results, strict=True)]
 
 
-def _odometry(pending: _Pending, result: MatchResult) -> Odometry:
+def _odometry(pending: _Pending, result: MatchResult, extra: dict[str, float]) -> Odometry:
+    """``extra``: added to the health's (the gyro bias estimate, when there is one)."""
     health = OdometryHealth(
         inliers=result.inliers,
         fitness=result.fitness,
         lost=not result.matched,
-        extra=_doppler_extra(pending.prior),
+        extra={**_doppler_extra(pending.prior), **extra},
     )
     return Odometry(
         pending.prior.stamp_s,

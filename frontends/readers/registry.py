@@ -98,7 +98,9 @@ def config_for_log(path: Path | str, config: SmokySlamConfig) -> SmokySlamConfig
     buildings: with the bias estimate, two logs with 0.6-0.9 m steps ended 1.6x and 2.8x
     worse than dead reckoning; without it 0.36x and 1.3x. On a 10 Hz radar the large radius
     halved the frame rate and worsened a 10-minute log (0.41 -> 0.63 x dead reckoning), so
-    these stay CARMEN settings. Other logs: ``config`` unchanged.
+    these stay CARMEN settings. The fused graph takes no gyro factors (``slam.gyro_factors``)
+    there: the emulated gyro is one sample a scan with ``carmen.gyro_noise_deg`` of noise,
+    no better than the scan matcher's turn. Other logs: ``config`` unchanged.
     """
     if log_format(Path(path)) != "carmen":
         return config
@@ -109,7 +111,8 @@ def config_for_log(path: Path | str, config: SmokySlamConfig) -> SmokySlamConfig
             "gyro_bias_sigma_degps": carmen.gyro_bias_sigma_degps,
         }
     )
-    return config.model_copy(update={"radar_odometry": radar})
+    slam = config.slam.model_copy(update={"gyro_factors": False})
+    return config.model_copy(update={"radar_odometry": radar, "slam": slam})
 
 
 def open_log(path: Path | str, config: SmokySlamConfig, require: Sequence[str] = ()) -> LogReader:

@@ -45,14 +45,18 @@ class GyroTally:
 
 
 def gyro_bias_metrics(
-    tally: GyroTally, truth: GroundTruthTrajectory | None, estimated_degps: float | None
+    tally: GyroTally,
+    truth: GroundTruthTrajectory | None,
+    estimated_degps: float | None,
+    graph_degps: float | None = None,
 ) -> dict[str, Any] | None:
     """``metrics.json`` ``gyro_bias``, or None without ground truth over the IMU's span.
 
     true_degps: the gyro's mean yaw rate less the true one. estimated_degps: the radar
     odometry's final estimate, as given (None when it estimates none). residual_degps: true less
     estimated (the whole bias when none is estimated): the rate the heading drifts at where
-    scan matching does not hold it.
+    scan matching does not hold it. graph_degps (with gyro factors): the pose graph's bias at
+    the last keyframe, the one its heading was held to.
     """
     if tally.samples < 2 or truth is None or len(truth) < 2:
         return None
@@ -66,8 +70,11 @@ def gyro_bias_metrics(
     true_yaw = np.unwrap(truth.poses_world_base[:, 2])
     true_turn = float(np.interp(end_s, stamps, true_yaw) - np.interp(start_s, stamps, true_yaw))
     true_degps = float(np.degrees((tally.yaw_rad - true_turn) / duration_s))
-    return {
+    metrics = {
         "true_degps": true_degps,
         "estimated_degps": estimated_degps,
         "residual_degps": true_degps - (estimated_degps or 0.0),
     }
+    if graph_degps is not None:
+        metrics["graph_degps"] = graph_degps
+    return metrics

@@ -118,6 +118,7 @@ class RunLoop:
         if isinstance(frame, ImuSample) and radar is not None:
             radar.add_imu(frame)
             self._gyro.add(frame)
+            self.stages.backend.add_imu(frame)
         elif isinstance(frame, RadarScan) and radar is not None:
             with self._clock.time("radar"):
                 self._order.extend(radar.register(self.stages.smoke.apply(frame)))
@@ -260,7 +261,7 @@ class RunLoop:
         lost = frame_lost & (camera_weight <= 0.0)
         factors = backend.factor_counts
         graph = {
-            "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure")},
+            "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure", "gyro")},
             "camera_pairs": backend.camera_pairs,
             "keyframes": len(backend.keyframe_stamps_s),
             "map_redraws": self.stages.maps.radar_redraws,
@@ -275,6 +276,8 @@ class RunLoop:
             )
         if self.stages.radar is not None and self.stages.radar.gyro_bias_radps is not None:
             extra["gyro_bias_degps"] = float(np.degrees(self.stages.radar.gyro_bias_radps))
+        if backend.gyro_bias_radps is not None:
+            extra["graph_gyro_bias_degps"] = float(np.degrees(backend.gyro_bias_radps))
         if self.stages.camera is not None:
             extra["reinitializations"] = self._camera_restarts
         if self.stages.camera_steps is not None:

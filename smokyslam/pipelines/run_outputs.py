@@ -60,7 +60,12 @@ def write_trajectory(
         **estimate.graph,
     }
     if estimate.gyro is not None:
-        bias = gyro_bias_metrics(estimate.gyro, truth, estimate.extra.get("gyro_bias_degps"))
+        bias = gyro_bias_metrics(
+            estimate.gyro,
+            truth,
+            estimate.extra.get("gyro_bias_degps"),
+            estimate.extra.get("graph_gyro_bias_degps"),
+        )
         if bias is not None:
             metrics["gyro_bias"] = bias
     return out.update_metrics(metrics)

@@ -1,14 +1,14 @@
 """Odometry sources: which stages of the one run loop each switches on.
 
-| source | radar frontend | camera | loop closures | trajectory of |
-| --- | --- | --- | --- | --- |
-| ``radar`` | scan matching | off | off | radar |
-| ``dead-reckoning`` | Doppler + gyro | off | off | radar |
-| ``camera`` | off | carries the trajectory | off | camera |
-| ``fused`` | scan matching | factors (``slam.camera_factors``) | ``slam.loop_closures`` | radar |
+| source | radar frontend | camera | loop closures | gyro factors | trajectory of |
+| --- | --- | --- | --- | --- | --- |
+| ``radar`` | scan matching | off | off | off | radar |
+| ``dead-reckoning`` | Doppler + gyro | off | off | off | radar |
+| ``camera`` | off | carries the trajectory | off | off | camera |
+| ``fused`` | scan matching | factors | ``slam.loop_closures`` | ``slam.gyro_factors`` | radar |
 
-Every source runs the same backend (keyframe gate, iSAM2 graph); with no camera factors and
-no loop closures its graph is a chain that reproduces the odometry exactly.
+Every source runs the same backend (keyframe gate, iSAM2 graph); with no camera factors, no
+loop closures and no gyro factors its graph is a chain that reproduces the odometry exactly.
 """
 
 from __future__ import annotations
@@ -44,12 +44,14 @@ MIN_CAMERA_HEIGHT_M = 0.05
 class Source:
     """radar: the radar frontend, None for none. camera: ``factors`` (camera factors between
     radar keyframes, when the log has a camera) or ``trajectory`` (the camera carries it).
-    loop_closures: radar submap loop closures. requires: streams the log must have."""
+    loop_closures: radar submap loop closures. requires: streams the log must have.
+    gyro: the gyro's turns join the graph (``slam.gyro_factors``)."""
 
     radar: RadarKind | None
     camera: Literal["factors", "trajectory"] | None
     loop_closures: bool
     requires: tuple[str, ...]
+    gyro: bool = False
 
     @property
     def camera_only(self) -> bool:
@@ -60,7 +62,7 @@ SOURCES: dict[str, Source] = {
     "radar": Source("scan-matching", None, False, ("radar",)),
     "dead-reckoning": Source("dead-reckoning", None, False, ("radar",)),
     "camera": Source(None, "trajectory", False, ("camera_image",)),
-    "fused": Source("scan-matching", "factors", True, ("radar",)),
+    "fused": Source("scan-matching", "factors", True, ("radar",), gyro=True),
 }
 
 
@@ -94,6 +96,7 @@ def build_stages(
         primary,
         extrinsics.T_base_camera if use_camera and not source.camera_only else None,
         loop_closures=source.loop_closures and config.slam.loop_closures,
+        gyro_factors=source.gyro and config.slam.gyro_factors,
     )
     visual_map = use_camera and (source.camera_only or config.slam.visual_map)
     camera = None
