@@ -1,16 +1,17 @@
 """The gyro's turn between keyframes, as factors that hold the graph's heading to it.
 
-Per keyframe pair the gyro's turn, less its bias, is off by about 0.07 deg RMS, against the
-radar step's 0.2 deg and the camera's 0.4 deg; over 30 pairs by 0.1-0.2 deg against 0.5-1.1
-and 0.7-3.1 (simulated 120 s walks, the bias fitted in hindsight; docs/accuracy.md). Its one
-weakness is the bias, which the radar odometry estimates as it goes and so has wrong early in
-a run. Here the bias is a variable of the graph, one per keyframe, walking slowly from one to
-the next: the radar's map-anchored heading, the camera's turns and the loop closures then pin
-it down in hindsight, and every turn of the walk is held to the gyro.
+Per keyframe pair the gyro's turn, less its bias, is off by 0.06-0.09 deg RMS, against the
+radar step's 0.17-0.26 deg and the camera's 0.30-0.47 deg; over 30 pairs by 0.04-0.24 deg
+against 0.33-1.13 and 0.73-3.09 (simulated 120 s walks, the bias fitted in hindsight;
+docs/accuracy.md). Its one weakness is the bias. The graph holds it as a variable, one per
+span of keyframes (``slam.gyro_bias_span_s``), each walking slowly from the one before
+(``PoseGraph.add_gyro_turn``), with the radar odometry's running estimate as a prior that is
+replaced at every keyframe (``PoseGraph.hold_gyro_bias``): alone, the graph's bias follows
+the radar's heading drift, since the radar steps claim independent errors.
 
-A factor holds ``yaw_j - yaw_i = turn - b_i * dt`` (1 dof): ``turn`` the raw gyro integral
-between the two keyframe stamps, ``b_i`` the bias of keyframe ``i`` (rad/s, a 1-vector), and
-``dt`` the time between them.
+A factor holds ``yaw_j - yaw_i = turn - b * dt`` (1 dof): ``turn`` the raw gyro integral
+between the two keyframe stamps, ``b`` the bias of the span (rad/s, a 1-vector), and ``dt``
+the time between them.
 """
 
 from __future__ import annotations

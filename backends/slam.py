@@ -7,8 +7,8 @@ between factor (steps composed with their covariance, never identity). Switched 
 - camera factors: a camera between factor for a radar keyframe pair once the camera has seen
   past it (when healthy, metric and consistent with radar: ``camera_factors.py``);
 - loop closures: the keyframe's radar submap matched against old ones (robust kernel);
-- gyro factors: the gyro's turn over each keyframe pair, less a bias the graph estimates
-  (``gyro.py``; ``slam.gyro_factors``).
+- gyro factors: the gyro's turn over each keyframe pair, less a bias the graph estimates,
+  held to the radar odometry's running estimate (``gyro.py``; ``slam.gyro_factors``).
 
 One iSAM2 update per keyframe. With none switched on the graph is a chain and reproduces
 the odometry exactly. Doppler enters only through the radar odometry's step: it already
