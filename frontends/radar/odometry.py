@@ -145,7 +145,7 @@ class RadarOdometry:
         extra = {}
         if self._prior.estimates_bias:  # where the bias estimate stands after this batch
             extra = {
-                "gyro_bias_radps": float(self._prior.heading.bias_radps),
+                "gyro_bias_radps": float(self.gyro_bias_radps),
                 "gyro_bias_sigma_radps": self._prior.bias_sigma_radps,
             }
         return [_odometry(p, r, extra) for p, r in zip(batch, results, strict=True)]
