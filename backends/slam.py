@@ -312,10 +312,14 @@ class SlamBackend:
 
     def _hold_gyro_bias(self, odometry: Odometry) -> None:
         """The radar odometry's running bias estimate, where it makes one, as a prior on the
-        graph's (``slam.gyro_bias_prior``)."""
+        graph's (``slam.gyro_bias_prior``), its sigma at least ``gyro_bias_prior_floor_degps``:
+        the estimate's own sigma ignores the radar heading's drift, which biases it."""
         extra = odometry.health.extra
         if self._slam.gyro_bias_prior and "gyro_bias_radps" in extra:
-            sigma = extra["gyro_bias_sigma_radps"] * self._slam.gyro_bias_prior_scale
+            sigma = max(
+                extra["gyro_bias_sigma_radps"] * self._slam.gyro_bias_prior_scale,
+                np.radians(self._slam.gyro_bias_prior_floor_degps),
+            )
             self._graph.hold_gyro_bias(extra["gyro_bias_radps"], sigma)
 
     def _close_loop(self, index: int) -> None:

@@ -169,3 +169,34 @@ def test_a_held_bias_prior_replaces_the_one_before():
     np.testing.assert_allclose(
         np.diff(graph.estimates()[:, 2])[-1], 0.05 - np.radians(-0.1) * 0.4, atol=1e-6
     )
+
+
+def test_a_floor_on_the_bias_prior_lets_the_steps_correct_an_overconfident_estimate():
+    """The radar odometry hands the graph a bias of 0 with a sigma of 0.001 deg/s while the
+    gyro is off by 0.3 deg/s and the steps' turns are good (0.02 deg each): held at that sigma
+    the graph keeps the wrong bias; floored at 0.05 deg/s (``gyro_bias_prior_floor_degps``)
+    the steps over 30 s pull it most of the way to the true one."""
+    truth_rate = np.array([0.5, 0.0, 0.1])
+    bias = np.radians(0.3)
+    imu_stamps = np.arange(0.0, 30.0, 0.01)
+    imu = samples(imu_stamps, truth_rate[2] + bias)
+    found = {}
+    for floor in (0.0, 0.05):
+        config = load_config(None, {"slam": {"gyro_bias_prior_floor_degps": floor}})
+        backend = SlamBackend(config, Primary("radar", np.zeros(3), 1.0), None, False, True)
+        step_noise = np.random.default_rng(2)
+        pose, next_imu = np.zeros(3), 0
+        for t in np.arange(0.1, 29.9, 0.1):
+            while imu[next_imu].stamp_s <= t + 0.05:
+                backend.add_imu(imu[next_imu])
+                next_imu += 1
+            delta = se2_between(se2_exp(truth_rate * (t - 0.1)), se2_exp(truth_rate * t))
+            delta[2] += step_noise.normal(0.0, np.radians(0.02))
+            pose = se2_compose(pose, delta)
+            extra = {"gyro_bias_radps": 0.0, "gyro_bias_sigma_radps": np.radians(0.001)}
+            health = OdometryHealth(inliers=30, fitness=0.02, lost=False, extra=extra)
+            sigmas = np.array([0.01, 0.01, np.radians(0.02)])
+            backend.add_odometry(Odometry(t, pose, delta, np.diag(sigmas**2), health), SCAN)
+        found[floor] = np.degrees(backend.gyro_bias_radps)
+    assert abs(found[0.0]) < 0.01
+    assert 0.2 < found[0.05] < 0.32  # 0.227: the steps' 75 keyframe turns against the prior

@@ -111,8 +111,9 @@ def test_a_long_warehouse_walk_finds_more_of_a_large_gyro_bias(tmp_path):
 def test_the_real_handheld_bag_s_bias_is_found_near_its_standstill_gyro(real_data_dir, tmp_path):
     """The TI bag is held still for its first 8 s (Doppler speed 0): the gyro's mean there is
     its bias, -0.43 deg/s. The heading filter alone ends at -0.18; with the fit at -0.37; the
-    fused graph, with the gyro's turns and that fit as its bias prior, at -0.33 (without the
-    prior: -0.06, the radar steps alone cannot tell the bias from their own drift)."""
+    fused graph, with the gyro's turns and that fit as its bias prior (sigma floored at 0.05
+    deg/s), at -0.30 (without the prior: -0.06, the radar steps alone cannot tell the bias
+    from their own drift)."""
     bag = real_data_dir / "ti_mmwave_rospkg_demo.bag"
     calibration = real_data_dir / "ti_mmwave_rospkg_demo.calib.yaml"
     config = load_config(overrides={"rig": {"calibration": str(calibration)}})
