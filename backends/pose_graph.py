@@ -147,7 +147,6 @@ class PoseGraph:
             self._new_values.insert(B(i), np.zeros(1))
             prior = gtsam.noiseModel.Isotropic.Sigma(1, first_bias_sigma_radps)
             self._new_factors.add(gtsam.PriorFactorVector(B(i), np.zeros(1), prior))
-            self._biases[i] = i
         self._bias_elapsed_s += dt_s
         if self._bias_elapsed_s >= bias_span_s:  # a new span: its bias walks from the last
             walk = gtsam.noiseModel.Isotropic.Sigma(1, bias_walk * np.sqrt(self._bias_elapsed_s))
