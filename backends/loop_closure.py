@@ -19,7 +19,7 @@ so a wrong match can slip through, so the caller adds the result with a robust k
 from __future__ import annotations
 
 import logging
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -44,6 +44,21 @@ logger = logging.getLogger(__name__)
 JOINED_REUSE_TOLERANCE = np.array([0.01, 0.01, 0.002])
 """A joined target (metres, metres, radians) is built again only once one of its submaps'
 placements has moved more than this since it was built; its normals cost more than the ICP."""
+
+OUTCOMES = (
+    "searches",
+    "candidates",
+    "overcorrected",
+    "few_inliers",
+    "high_rms",
+    "rival",
+    "accepted",
+)
+"""Keys of :attr:`LoopCloser.outcomes`: keyframes searched (checked, past the spacing after a
+closure, with an old keyframe far enough back); candidate matches tried (old keyframes within
+the search radius, at most ``max_candidates`` a search); candidates refused because ICP moved
+the guess too far, too few points agreed, or the residual was too large; searches whose best
+match was dropped for a rival optimum; and closures accepted."""
 
 JOINED_CACHE_SIZE = 32
 """Joined targets kept (the most recently used): the same few old keyframes are candidates for
@@ -82,7 +97,7 @@ class LoopCloser:
         max_correction: tuple[float, float],
         min_spacing: int,
         floor_sigmas: tuple[float, float, float],
-        near: tuple[float, float],
+        near: tuple[float, float, float],
         rival_radii_m: tuple[float, ...],
         rival_sigma_m: float,
         normal_radius_m: float | None,
@@ -94,8 +109,9 @@ class LoopCloser:
         min_spacing: keyframes to wait after an accepted closure before looking again.
         floor_sigmas: smallest [x_m, y_m, theta_rad] sigmas a closure may claim. match_sigmas_m:
         (along a target normal, without one) sigma of one matched point in the closure's
-        covariance (:func:`match_covariance`). near: (metres, inlier fraction) a match
-        that shifts the guess at most that far needs only that inlier fraction. Where the
+        covariance (:func:`match_covariance`). near: (metres, inlier fraction, RMS metres) a
+        match that shifts the guess at most that far needs only that inlier fraction and may
+        have that RMS. Where the
         estimate was already right, a partial overlap rarely aligns wrongly; a far correction on
         partial overlap is as often an aisle or corridor slid along as a real one.
         rival_radii_m, rival_sigma_m: the far match's rival search (:func:`best_rival`); empty
@@ -111,7 +127,7 @@ class LoopCloser:
         self._max_correction = max_correction
         self._min_spacing = min_spacing
         self._floor_sigmas = np.asarray(floor_sigmas, dtype=float)
-        self._near_correction_m, self._near_min_inlier_fraction = near
+        self._near_correction_m, self._near_min_inlier_fraction, self._near_max_rms_m = near
         self._rival_radii_m = tuple(rival_radii_m)
         self._rival_sigma_m = rival_sigma_m
         self._normal_radius_m = normal_radius_m
@@ -121,6 +137,8 @@ class LoopCloser:
         self._submaps: dict[int, Scan] = {}
         self._joined_cache: OrderedDict[int, tuple[np.ndarray, np.ndarray, Scan]] = OrderedDict()
         self._last_closure = -(10**9)
+        self.outcomes: Counter[str] = Counter()
+        """Searches and candidates so far, by outcome (:data:`OUTCOMES`)."""
 
     def check(
         self,
@@ -152,22 +170,27 @@ class LoopCloser:
         old = np.array([k for k in self._submaps if k <= index - self._min_index_gap], dtype=int)
         if old.size == 0:
             return None
+        self.outcomes["searches"] += 1
         distance = np.linalg.norm(poses[old, :2] - poses[index, :2], axis=1)
         near = old[distance < self._search_radius_m]
         near = near[np.argsort(distance[distance < self._search_radius_m])]
         best = None
         for old_index in near[: self._max_candidates]:
             result, correction, target = self._match(submap, index, int(old_index), old, poses)
-            if self._verified(result, correction) and (
-                best is None or result.rms_m < best[1].rms_m
-            ):
+            rejection = self._rejection(result, correction)
+            self.outcomes["candidates"] += 1
+            if rejection is not None:
+                self.outcomes[rejection] += 1
+            elif best is None or result.rms_m < best[1].rms_m:
                 best = (int(old_index), result, correction, target)
         if best is None:
             return None
         old_index, result, correction, target = best
         if self._ambiguous(submap, target, result, correction):
             logger.debug("loop closure %d -> %d dropped: a rival fits as well", old_index, index)
+            self.outcomes["rival"] += 1
             return None
+        self.outcomes["accepted"] += 1
         covariance = match_covariance(
             submap,
             target,
@@ -251,18 +274,21 @@ class LoopCloser:
         return rival >= own
 
     def _verified(self, result: IcpResult, correction: np.ndarray) -> bool:
+        return self._rejection(result, correction) is None
+
+    def _rejection(self, result: IcpResult, correction: np.ndarray) -> str | None:
+        """Why a match (``correction``: its move from the odometry guess) is refused, as an
+        :data:`OUTCOMES` key, or None if it verifies."""
         shift_m = _shift_m(correction)
-        min_inliers = (
-            self._near_min_inlier_fraction
-            if shift_m <= self._near_correction_m
-            else self._min_inlier_fraction
-        )
-        return bool(
-            result.inlier_fraction >= min_inliers
-            and result.rms_m <= self._max_rms_m
-            and shift_m <= self._max_correction[0]
-            and abs(correction[2]) <= self._max_correction[1]
-        )
+        if shift_m > self._max_correction[0] or abs(correction[2]) > self._max_correction[1]:
+            return "overcorrected"
+        near = shift_m <= self._near_correction_m
+        min_inliers = self._near_min_inlier_fraction if near else self._min_inlier_fraction
+        if result.inlier_fraction < min_inliers:
+            return "few_inliers"
+        if result.rms_m > (self._near_max_rms_m if near else self._max_rms_m):
+            return "high_rms"
+        return None
 
 
 def _shift_m(correction: np.ndarray) -> float:
@@ -285,7 +311,11 @@ def get_loop_closer(config: LoopClosureConfig, voxel_m: float) -> LoopCloser:
         max_correction=(config.max_correction_m, config.max_correction_rad),
         min_spacing=config.min_spacing,
         floor_sigmas=config.floor_sigmas,
-        near=(config.near_correction_m, config.near_min_inlier_fraction),
+        near=(
+            config.near_correction_m,
+            config.near_min_inlier_fraction,
+            config.near_max_rms_m,
+        ),
         rival_radii_m=config.rival_radii_m,
         rival_sigma_m=config.rival_sigma_m,
         normal_radius_m=config.normal_radius_m,

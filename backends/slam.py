@@ -28,6 +28,7 @@ import numpy as np
 from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
 from smokyslam.backends.gyro import GyroTurns
 from smokyslam.backends.keyframes import Keyframe, Keyframer, get_keyframe_gate
+from smokyslam.backends.loop_closure import OUTCOMES as LOOP_OUTCOMES
 from smokyslam.backends.loop_closure import get_loop_closer
 from smokyslam.backends.noise import RobustKernel
 from smokyslam.backends.pose_graph import get_pose_graph
@@ -155,6 +156,14 @@ class SlamBackend:
     def camera_pairs(self) -> dict[str, int]:
         """Keyframe pairs by camera outcome (used, untracked, gated, no_scale, inconsistent)."""
         return dict(self._camera.outcomes) if self._camera is not None else {}
+
+    @property
+    def loop_searches(self) -> dict[str, int]:
+        """Loop-closure searches and candidates by outcome (every key of
+        :data:`~smokyslam.backends.loop_closure.OUTCOMES`; empty without loop closures)."""
+        if self._loops is None:
+            return {}
+        return {key: self._loops.outcomes.get(key, 0) for key in LOOP_OUTCOMES}
 
     @property
     def step_pairs(self) -> StepPairs | None:

@@ -91,6 +91,10 @@ def test_closer_finds_revisits_with_accurate_relative_poses():
         if found is not None:
             closures.append(found)
     assert len(closures) >= 6
+    outcomes = closer.outcomes
+    assert outcomes["accepted"] == len(closures)
+    refused = sum(outcomes[k] for k in ("overcorrected", "few_inliers", "high_rms"))
+    assert outcomes["candidates"] >= refused + len(closures)
     assert all(c.new_index - c.old_index >= 20 for c in closures)
     assert np.all(np.diff([c.new_index for c in closures]) >= 3)
     for closure in closures:
@@ -112,23 +116,29 @@ def test_closer_refuses_recent_far_wrong_and_overcorrected_matches():
     closer.check(0, truth[:1], submap(old, rng))
     # Too recent: the same place again one keyframe later.
     assert closer.check(1, np.array([old, old]), submap(old, rng)) is None
+    assert closer.outcomes["searches"] == 0
     poses = np.array([old] * 40)
     # The estimate says "back at keyframe 0" but the rig is in the other room.
     other_room = np.array([15.0, 5.0, 1.0])
     assert closer.check(39, poses, submap(other_room, rng)) is None
+    # Both stored keyframes were candidates; the other room's walls do not line up with theirs.
+    assert closer.outcomes == {"searches": 1, "candidates": 2, "few_inliers": 2}
     # Far from every old keyframe: not even tried.
     poses[39] = [12.0, 8.0, 0.0]
     assert closer.check(39, poses, submap(poses[39], rng)) is None
+    assert closer.outcomes == {"searches": 2, "candidates": 2, "few_inliers": 2}
     # A right match that needs a larger correction than allowed.
     strict = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=0.1), VOXEL_M)
     strict.check(0, truth[:1], submap(old, rng))
     poses = np.array([old] * 40)
     actual = se2_compose(old, [0.4, 0.2, 0.0])
     assert strict.check(39, poses, submap(actual, rng)) is None
+    assert strict.outcomes["overcorrected"] == 1
     relaxed = get_loop_closer(LoopClosureConfig(min_index_gap=30, max_correction_m=1.0), VOXEL_M)
     relaxed.check(0, truth[:1], submap(old, rng))
     found = relaxed.check(39, poses, submap(actual, rng))
     assert found is not None
+    assert relaxed.outcomes == {"searches": 1, "candidates": 1, "accepted": 1}
     np.testing.assert_allclose(found.delta, [0.4, 0.2, 0.0], atol=0.05)
 
 
@@ -150,6 +160,7 @@ def test_a_near_closure_needs_less_overlap_than_a_far_one():
         poses[39] = se2_compose(old, offset)
         closure = closer.check(39, poses, np.concatenate([walls, clutter]))
         assert (closure is not None) is taken
+        assert closer.outcomes["accepted" if taken else "few_inliers"] == 1
         if taken:
             np.testing.assert_allclose(closure.delta, [0.0, 0.0, 0.0], atol=0.05)
 
@@ -189,6 +200,7 @@ def test_a_far_match_onto_a_repeating_copy_is_dropped():
         closer.check(0, old[None], aisle_submap(old))
         closure = closer.check(39, poses, aisle_submap(old))
         assert (closure is not None) is taken
+        assert closer.outcomes["rival"] == (0 if taken else 1)
         if taken:  # the slid copy: a metre off the truth (the same place)
             assert abs(abs(closure.delta[0]) - 1.0) < 0.05
     closer = get_loop_closer(LoopClosureConfig(min_index_gap=30), VOXEL_M)
@@ -233,6 +245,7 @@ def test_a_match_of_a_racks_two_faces_is_refused():
         closer.check(0, south[None], *seen_from(south, south_view))
         closure = closer.check(39, poses, *seen_from(north, north_view))
         assert (closure is not None) is taken
+        assert closer.outcomes["accepted" if taken else "few_inliers"] == 1
         if taken:  # the faces laid onto each other: a metre south of the truth
             error = se2_between(se2_between(south, north), closure.delta)
             assert abs(error[1] + 1.0) < 0.1
@@ -312,3 +325,29 @@ def test_a_joined_target_survives_a_heading_across_the_half_turn_and_the_cache_i
         closer._joined(k, old, line)
     assert list(closer._joined_cache) == list(range(count - JOINED_CACHE_SIZE, count))
     assert closer._joined(count - 1, old, line) is closer._joined(count - 1, old, line)
+
+
+def test_a_near_closure_may_be_noisier_than_a_far_one():
+    """Long-range radar points are noisy: here the new submap's walls are 20 cm off (inlier
+    RMS about 0.13 m). With the estimate 5 cm off the match is near and is taken under
+    ``near_max_rms_m`` (0.15 m); with the same scans 0.5 m off it is far, and a far match must
+    keep ``max_rms_m`` (0.12 m): one that moves the estimate on noisy evidence is as often an
+    aisle slid along as a real correction."""
+    old = np.array([5.0, 3.0, 0.3])
+    for offset, near_max_rms_m, outcome in [
+        (0.05, 0.15, "accepted"),
+        (0.5, 0.15, "high_rms"),
+        (0.05, 0.12, "high_rms"),
+    ]:
+        rng = np.random.default_rng(7)
+        config = LoopClosureConfig(min_index_gap=30, near_max_rms_m=near_max_rms_m)
+        closer = get_loop_closer(config, VOXEL_M)
+        closer.check(0, old[None], submap(old, rng, count=600))
+        poses = np.array([old] * 40)
+        poses[39] = se2_compose(old, [offset, 0.0, 0.0])
+        noisy = submap(old, rng)
+        closure = closer.check(39, poses, noisy + rng.normal(0.0, 0.2, noisy.shape))
+        assert closer.outcomes[outcome] == 1
+        if closure is not None:
+            assert 0.12 < closure.rms_m < 0.15
+            np.testing.assert_allclose(closure.delta, [0.0, 0.0, 0.0], atol=0.05)

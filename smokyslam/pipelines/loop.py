@@ -263,6 +263,7 @@ class RunLoop:
         graph = {
             "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure", "gyro")},
             "camera_pairs": backend.camera_pairs,
+            "loop_searches": backend.loop_searches,
             "keyframes": len(backend.keyframe_stamps_s),
             "map_redraws": self.stages.maps.radar_redraws,
             "stage_s": dict(self._clock.seconds),
