@@ -111,9 +111,9 @@ class LoopCloser:
         (along a target normal, without one) sigma of one matched point in the closure's
         covariance (:func:`match_covariance`). near: (metres, inlier fraction, RMS metres) a
         match that shifts the guess at most that far needs only that inlier fraction and may
-        have that RMS. Where the
-        estimate was already right, a partial overlap rarely aligns wrongly; a far correction on
-        partial overlap is as often an aisle or corridor slid along as a real one.
+        have that RMS. Where the estimate was already right, a partial overlap or noisy
+        long-range points rarely align wrongly; a far correction on such evidence is as often an
+        aisle or corridor slid along as a real one.
         rival_radii_m, rival_sigma_m: the far match's rival search (:func:`best_rival`); empty
         radii: none. normal_radius_m: neighbourhood of a submap point's oriented normal
         (:mod:`smokyslam.backends.scan_match`); None: no normals, any points may match."""
