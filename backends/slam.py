@@ -163,7 +163,7 @@ class SlamBackend:
         :data:`~smokyslam.backends.loop_closure.OUTCOMES`; empty without loop closures)."""
         if self._loops is None:
             return {}
-        return {key: self._loops.outcomes.get(key, 0) for key in LOOP_OUTCOMES}
+        return {key: self._loops.outcomes[key] for key in LOOP_OUTCOMES}
 
     @property
     def step_pairs(self) -> StepPairs | None:

@@ -198,7 +198,7 @@ class LoopClosureConfig(_Section):
         0.35, gt=0.0, le=1.0, description="the inlier fraction a near closure needs"
     )
     max_rms_m: float = Field(0.12, gt=0.0, description="RMS of inlier distances")
-    # 0.15 (stop 58): over 183 unseen fused runs ATE 0.982x the old default's (25 runs lower by
+    # 0.15 (stop 59): over 183 unseen fused runs ATE 0.982x the old default's (25 runs lower by
     # over 10 %, 14 higher), runs above 1.05x the better single source 9 -> 6, worst 1.94x ->
     # 1.56x. Among near candidates the RMS hardly separates right from wrong matches; far ones
     # keep max_rms_m: a far match above it slid warehouse 10111 along an aisle.
