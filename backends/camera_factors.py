@@ -27,6 +27,14 @@ What a factor holds (``slam.camera_factor``):
   gate is strict and passes about 30 % of pairs.
 
 The metric step is kept in both modes where the scale is known (``steps``, for evaluation).
+
+Long turns (``slam.camera_long_turn_s``, yaw factors only): the per-pair turns are weak, and
+as independent factors they cannot say that the camera's errors do not add up, since it tracks
+against its own map. Every ``camera_long_turn_s`` seconds of unbroken tracking in one camera
+map, one more yaw factor holds the camera's whole turn since the last one, with
+``camera_long_turn_sigma_deg``. That is what a gyro bias held a little off needs: in warehouse
+10081 the radar's bias estimate turned the fused heading 5 deg over the walk while the camera's
+stayed within about 1 deg (docs/accuracy.md).
 """
 
 from __future__ import annotations
@@ -91,6 +99,24 @@ class CameraFactor:
 
 
 @dataclass(frozen=True)
+class LongTurn:
+    """The camera's turn (rad) from keyframe ``old_index`` to the keyframe it was asked for,
+    with its variance (rad^2, inflated by the tracking weight)."""
+
+    old_index: int
+    yaw_rad: float
+    variance: float
+
+
+@dataclass(frozen=True)
+class _Anchor:
+    index: int
+    stamp_s: float
+    yaw_rad: float
+    map_id: int
+
+
+@dataclass(frozen=True)
 class _Sample:
     stamp_s: float
     pose: np.ndarray  # (3,) camera body in the camera odometry world, camera units
@@ -130,6 +156,8 @@ class CameraFactorMaker:
         consistency_chi2: float,
         kind: CameraFactorKind,
         yaw_variance_scale: float,
+        long_turn_s: float = 0.0,
+        long_turn_sigma_rad: float = np.radians(2.0),
     ) -> None:
         if kind not in FACTOR_KINDS:
             raise ConfigError(
@@ -142,6 +170,9 @@ class CameraFactorMaker:
         self._consistency_chi2 = consistency_chi2
         self._kind = kind
         self._yaw_variance_scale = yaw_variance_scale
+        self._long_turn_s = long_turn_s
+        self._long_turn_variance = long_turn_sigma_rad**2
+        self._anchor: _Anchor | None = None
         self._samples: deque[_Sample] = deque()
         self.weight = 0.0
         """Gate weight of the latest frame."""
@@ -178,6 +209,8 @@ class CameraFactorMaker:
         decision = self._gate.update(camera_health(result))
         if decision.reentered or result.reinitialized:
             self._scale.reset()  # a camera back from a loss brings a new scale
+        if result.lost or result.reinitialized:
+            self._anchor = None  # a long turn spans unbroken tracking only
         self.weight = decision.weight if not result.lost else 0.0
         tracking = decision.tracking if not result.lost else 0.0
         self._samples.append(
@@ -246,6 +279,30 @@ class CameraFactorMaker:
         self.outcomes["used"] += 1
         return CameraFactor(delta, inflate_covariance(delta_cov, weight), weight)
 
+    def long_turn(self, index: int, stamp_s: float) -> LongTurn | None:
+        """The camera's turn since the last long-turn keyframe, once ``long_turn_s`` has
+        passed in one camera map with every frame tracked; keyframe ``index`` at ``stamp_s``
+        then starts the next one. Call for keyframes whose pair got a camera factor."""
+        if self._long_turn_s <= 0.0:
+            return None
+        span = self._span(stamp_s, stamp_s)
+        if span is None:
+            self._anchor = None
+            return None
+        stamps = np.array([s.stamp_s for s in span])
+        poses = np.array([s.pose for s in span])
+        yaw = float(interpolate_se2(stamps, poses, np.array([stamp_s]))[0, 2])
+        anchor, map_id = self._anchor, span[0].map_id
+        same_map = anchor is not None and anchor.map_id == map_id
+        if same_map and stamp_s - anchor.stamp_s < self._long_turn_s:
+            return None
+        self._anchor = _Anchor(index, stamp_s, yaw, map_id)
+        tracking = min(s.tracking for s in span)
+        if not same_map or tracking <= 0.0:
+            return None
+        variance = self._long_turn_variance / tracking**2
+        return LongTurn(anchor.index, float(wrap_angle(yaw - anchor.yaw_rad)), variance)
+
     def _yaw_factor(
         self,
         yaw_rad: float,
@@ -300,4 +357,6 @@ def get_camera_factor_maker(
         slam.camera_consistency_chi2,
         kind if kind is not None else slam.camera_factor,
         slam.camera_yaw_variance_scale,
+        slam.camera_long_turn_s if (kind or slam.camera_factor) == "yaw" else 0.0,
+        np.radians(slam.camera_long_turn_sigma_deg),
     )

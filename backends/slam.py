@@ -25,7 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
+from smokyslam.backends.camera_factors import (
+    FREE_TRANSLATION_VARIANCE_M2,
+    CameraFactorMaker,
+    get_camera_factor_maker,
+)
 from smokyslam.backends.gyro import GyroTurns
 from smokyslam.backends.keyframes import Keyframe, Keyframer, get_keyframe_gate
 from smokyslam.backends.loop_closure import OUTCOMES as LOOP_OUTCOMES
@@ -35,7 +39,7 @@ from smokyslam.backends.pose_graph import get_pose_graph
 from smokyslam.backends.scale import ScaleEstimator
 from smokyslam.config import SmokySlamConfig
 from smokyslam.frontends.camera.odometry import CameraOdometryResult
-from smokyslam.geometry import se2_compose
+from smokyslam.geometry import se2_between, se2_compose
 from smokyslam.types import ImuSample, Odometry, StepPairs
 
 logger = logging.getLogger(__name__)
@@ -305,6 +309,27 @@ class SlamBackend:
                 source="camera",
             )
             self.keyframe_camera[pair.index] = True
+            self._add_long_turn(pair.index, pair.stamp_b_s)
+
+    def _add_long_turn(self, index: int, stamp_s: float) -> None:
+        """The camera's turn since its last long-turn keyframe (``slam.camera_long_turn_s``),
+        its translation the graph's current one, left free."""
+        turn = self._camera.long_turn(index, stamp_s)
+        if turn is None:
+            return
+        step = se2_between(self._graph.estimate(turn.old_index), self._graph.estimate(index))
+        delta = np.array([step[0], step[1], turn.yaw_rad])
+        free = FREE_TRANSLATION_VARIANCE_M2
+        covariance = np.diag([free, free, turn.variance])
+        self._graph.add_between(
+            turn.old_index,
+            index,
+            delta,
+            covariance,
+            self._camera_kernel,
+            self._camera_width,
+            source="camera_long_turn",
+        )
 
     def _add_gyro_turn(self, i: int, j: int, start_s: float, end_s: float) -> None:
         slam = self._slam

@@ -8,10 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from smokyslam.backends.camera_factors import CameraFactorMaker
+from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
 from smokyslam.backends.camera_gate import get_camera_gate
 from smokyslam.backends.keyframes import KeyframeGate, Keyframer
 from smokyslam.backends.scale import get_scale_estimator
+from smokyslam.backends.slam import Primary, SlamBackend
 from smokyslam.config import SmokySlamConfig, load_config
 from smokyslam.errors import ConfigError
 from smokyslam.frontends.camera.pose import camera_from_planar, planar_from_camera
@@ -27,9 +28,10 @@ from smokyslam.geometry import (
     se2_inverse,
     se2_log,
     transform_points_2d,
+    wrap_angle,
 )
 from smokyslam.pipelines.run import evaluate_source, run_log, run_source
-from smokyslam.types import CameraFrame, Odometry, OdometryHealth
+from smokyslam.types import CameraFrame, ImuSample, Odometry, OdometryHealth
 
 MOUNT_RADAR = np.array([0.1, 0.0, 0.0])
 
@@ -222,6 +224,110 @@ def test_a_yaw_factor_holds_the_camera_turn_from_the_first_pair_and_leaves_trans
     assert 0.2 / np.sqrt(radar_covariance[2, 2] + yaw_variance) > 30
 
 
+def _long_turn_maker() -> CameraFactorMaker:
+    """A yaw-factor maker with a long turn every 2 s (sigma 1 deg)."""
+    config = SmokySlamConfig()
+    return CameraFactorMaker(
+        np.eye(4),
+        get_camera_gate(config.backend.camera_gate),
+        get_scale_estimator(config.backend.scale),
+        covariance_scale=1.0,
+        consistency_chi2=3.0,
+        kind="yaw",
+        yaw_variance_scale=64.0,
+        long_turn_s=2.0,
+        long_turn_sigma_rad=np.radians(1.0),
+    )
+
+
+def _feed_long_turns(maker: CameraFactorMaker, lost_at_s: float | None = None) -> list:
+    """A camera turning at 0.2 rad/s for 6 s at 15 Hz (the frame at ``lost_at_s`` lost) and
+    keyframes every 0.4 s, in time order; returns (keyframe index, long turn) for each
+    keyframe that made one."""
+    turns, index = [], 0
+    for t in np.arange(0.0, 6.0, 1 / 15):
+        result = _camera_result(t, se2_exp(np.array([0.0, 0.0, 0.2]) * t))
+        if lost_at_s is not None and abs(t - lost_at_s) < 1e-6:
+            result = dataclasses.replace(result, status=TrackingStatus.LOST)
+        maker.add(result)
+        if t > 0.4 * (index + 1):  # the camera has passed the next keyframe
+            index += 1
+            turn = maker.long_turn(index, 0.4 * index)
+            if turn is not None:
+                turns.append((index, turn))
+    return turns
+
+
+def test_a_long_turn_holds_the_camera_s_turn_over_seconds_of_unbroken_tracking():
+    turns = _feed_long_turns(_long_turn_maker())
+    # Keyframe 1 (0.4 s) starts the first; one every 2 s (5 keyframes) of tracking after.
+    assert [(t.old_index, i) for i, t in turns] == [(1, 6), (6, 11)]
+    for _, turn in turns:
+        assert turn.yaw_rad == pytest.approx(0.2 * 2.0, abs=1e-6)
+        assert turn.variance == pytest.approx(np.radians(1.0) ** 2)
+    # A lost frame at 3 s (keyframe 7 at 2.8 s is before it) breaks the span: the next
+    # keyframe seen tracked starts a new one, and no turn crosses the loss.
+    turns = _feed_long_turns(_long_turn_maker(), lost_at_s=3.0)
+    assert [(t.old_index, i) for i, t in turns] == [(1, 6), (8, 13)]
+    # Off for whole-step camera factors, which hold the turn already.
+    config = SmokySlamConfig()
+    T_base_camera = np.eye(4)
+    assert get_camera_factor_maker(config.backend, config.slam, T_base_camera)._long_turn_s == 20.0
+    pose = get_camera_factor_maker(config.backend, config.slam, T_base_camera, kind="pose")
+    assert pose._long_turn_s == 0.0
+
+
+def _heading_after_a_biased_minute(long_turn_s: float, sigma_deg: float) -> tuple[float, float]:
+    """60 s on an arc (0.5 m/s, 0.1 rad/s) with a gyro 0.15 deg/s off, radar steps that turn
+    with it (the radar odometry integrates that gyro) and a bias estimate of 0 it holds
+    firmly; a camera (15 Hz) that sees the true turns. Returns the last keyframe's heading
+    error (deg) and the graph's bias (deg/s) with long turns every ``long_turn_s``."""
+    slam = {"camera_long_turn_s": long_turn_s, "camera_long_turn_sigma_deg": sigma_deg}
+    config = load_config(None, {"slam": slam})
+    T_base_camera = np.eye(4)
+    T_base_camera[:3, :3] = camera_from_planar(np.zeros(3))[:3, :3]
+    T_base_camera[:3, 3] = [0.05, 0.0, 1.2]
+    mount = planar_from_camera(T_base_camera)
+    rate, bias = np.array([0.5, 0.0, 0.1]), np.radians(0.15)
+    backend = SlamBackend(config, Primary("radar", np.zeros(3), 1.0), T_base_camera, False, True)
+    # In time order, the IMU 50 ms ahead of the frames: 0 IMU, 1 radar, 2 camera.
+    events = [(t - 0.05, 0, t) for t in np.arange(0.0, 60.0, 0.01)]
+    events += [(t, 1, t) for t in np.arange(0.1, 59.0, 0.1)]
+    events += [(t, 2, t) for t in np.arange(0.0, 60.0, 1 / 15)]
+    pose = np.zeros(3)
+    extra = {"gyro_bias_radps": 0.0, "gyro_bias_sigma_radps": np.radians(0.001)}
+    health = OdometryHealth(inliers=30, fitness=0.02, lost=False, extra=extra)
+    covariance = np.diag(np.square([0.01, 0.01, np.radians(0.2)]))
+    for _, kind, t in sorted(events):
+        if kind == 0:
+            backend.add_imu(ImuSample(float(t), np.array([0.0, 0.0, rate[2] + bias]), np.zeros(3)))
+        elif kind == 1:
+            delta = se2_between(se2_exp(rate * (t - 0.1)), se2_exp(rate * t))
+            delta[2] += bias * 0.1
+            pose = se2_compose(pose, delta)
+            backend.add_odometry(Odometry(float(t), pose, delta, covariance, health), SCAN_XY)
+        else:
+            camera = se2_compose(se2_exp(rate * t), mount)
+            camera[:2] /= 2.5
+            backend.add_camera(_camera_result(float(t), camera))
+    last = backend.keyframe_stamps_s[-1] - backend.keyframe_stamps_s[0]
+    error = wrap_angle(backend.keyframe_poses()[-1, 2] - rate[2] * last)
+    return abs(np.degrees(error)), np.degrees(backend.gyro_bias_radps)
+
+
+def test_long_turns_let_a_camera_that_keeps_its_heading_correct_a_shared_gyro_bias():
+    # Radar and gyro agree on a bias that is wrong: the per-pair camera turns (weak, as
+    # independent factors) barely move it; turns over 20 s do, the more the firmer.
+    without, bias_without = _heading_after_a_biased_minute(0.0, 2.0)
+    loose, bias_loose = _heading_after_a_biased_minute(20.0, 2.0)
+    firm, bias_firm = _heading_after_a_biased_minute(20.0, 0.5)
+    assert without > 6.0 and bias_without < 0.03  # 7.7 deg, 0.016 deg/s (true 0.15)
+    assert 0.6 * without < loose < 0.85 * without  # 5.8 deg
+    assert firm < 0.3 * without  # 1.6 deg
+    assert bias_without < bias_loose < bias_firm
+    assert bias_firm == pytest.approx(0.15, abs=0.06)  # 0.107
+
+
 def test_image_noise_weighs_a_pose_factor_but_not_a_yaw_factor():
     # The camera's turn is as good at noise 0.4 as in clean air (docs/accuracy.md): a yaw
     # factor is weighed by tracking alone, so a noisy camera that tracks keeps full weight.
@@ -277,6 +383,7 @@ def test_fused_run_writes_every_output(runs):
     factors = metrics["factors"]
     assert factors["radar"] == metrics["keyframes"] - 1 > 50
     assert factors["camera"] > 10
+    assert factors["camera_long_turn"] == 1  # 30 s of tracking: one turn over 20 s
     assert metrics["trajectory"]["lost_frames"] == 0
     # Both steps of every pair with a metric camera step, against the true motion: the
     # radar's a few millimetres per step, the camera's (checked before the gate) larger.

@@ -313,6 +313,15 @@ class SlamConfig(_Section):
     camera_yaw_variance_scale: float = Field(
         64.0, gt=0.0, description="yaw factors: variance multiplier on the camera's reported yaw"
     )
+    camera_long_turn_s: float = Field(
+        20.0,
+        ge=0.0,
+        description="yaw factors: seconds of unbroken camera tracking per long-turn factor "
+        "(0: none)",
+    )
+    camera_long_turn_sigma_deg: float = Field(
+        2.0, gt=0.0, description="sigma of a long-turn factor (deg)"
+    )
     camera_covariance_scale: float = Field(
         1.0, gt=0.0, description="pose factors: variance multiplier on the camera's covariances"
     )

@@ -39,6 +39,9 @@ from smokyslam.viz.recorder import Due, FrameRecord, RunSnapshot
 
 logger = logging.getLogger(__name__)
 
+FACTOR_SOURCES = ("radar", "camera", "camera_long_turn", "loop_closure", "gyro")
+"""The graph's factors by source, as ``metrics.json`` counts them."""
+
 ProgressCallback = Callable[[float, str], None]
 """Called as frames are processed: (stamp_s of the frame just processed, health text)."""
 
@@ -261,7 +264,7 @@ class RunLoop:
         lost = frame_lost & (camera_weight <= 0.0)
         factors = backend.factor_counts
         graph = {
-            "factors": {k: factors.get(k, 0) for k in ("radar", "camera", "loop_closure", "gyro")},
+            "factors": {k: factors.get(k, 0) for k in FACTOR_SOURCES},
             "camera_pairs": backend.camera_pairs,
             "loop_searches": backend.loop_searches,
             "keyframes": len(backend.keyframe_stamps_s),
