@@ -101,11 +101,12 @@ class CameraFactor:
 @dataclass(frozen=True)
 class LongTurn:
     """The camera's turn (rad) from keyframe ``old_index`` to the keyframe it was asked for,
-    with its variance (rad^2, inflated by the tracking weight)."""
+    and the (3, 3) tangent covariance of a factor holding it: translation free, the turn's
+    variance inflated by the tracking weight."""
 
     old_index: int
     yaw_rad: float
-    variance: float
+    covariance: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,7 @@ class CameraFactorMaker:
         self._consistency_chi2 = consistency_chi2
         self._kind = kind
         self._yaw_variance_scale = yaw_variance_scale
-        self._long_turn_s = long_turn_s
+        self._long_turn_s = long_turn_s if kind == "yaw" else 0.0  # a pose factor holds it
         self._long_turn_variance = long_turn_sigma_rad**2
         self._anchor: _Anchor | None = None
         self._samples: deque[_Sample] = deque()
@@ -300,8 +301,9 @@ class CameraFactorMaker:
         tracking = min(s.tracking for s in span)
         if not same_map or tracking <= 0.0:
             return None
-        variance = self._long_turn_variance / tracking**2
-        return LongTurn(anchor.index, float(wrap_angle(yaw - anchor.yaw_rad)), variance)
+        free = FREE_TRANSLATION_VARIANCE_M2
+        covariance = inflate_covariance(np.diag([free, free, self._long_turn_variance]), tracking)
+        return LongTurn(anchor.index, float(wrap_angle(yaw - anchor.yaw_rad)), covariance)
 
     def _yaw_factor(
         self,
@@ -357,6 +359,6 @@ def get_camera_factor_maker(
         slam.camera_consistency_chi2,
         kind if kind is not None else slam.camera_factor,
         slam.camera_yaw_variance_scale,
-        slam.camera_long_turn_s if (kind or slam.camera_factor) == "yaw" else 0.0,
+        slam.camera_long_turn_s,
         np.radians(slam.camera_long_turn_sigma_deg),
     )

@@ -25,11 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from smokyslam.backends.camera_factors import (
-    FREE_TRANSLATION_VARIANCE_M2,
-    CameraFactorMaker,
-    get_camera_factor_maker,
-)
+from smokyslam.backends.camera_factors import CameraFactorMaker, get_camera_factor_maker
 from smokyslam.backends.gyro import GyroTurns
 from smokyslam.backends.keyframes import Keyframe, Keyframer, get_keyframe_gate
 from smokyslam.backends.loop_closure import OUTCOMES as LOOP_OUTCOMES
@@ -319,13 +315,11 @@ class SlamBackend:
             return
         step = se2_between(self._graph.estimate(turn.old_index), self._graph.estimate(index))
         delta = np.array([step[0], step[1], turn.yaw_rad])
-        free = FREE_TRANSLATION_VARIANCE_M2
-        covariance = np.diag([free, free, turn.variance])
         self._graph.add_between(
             turn.old_index,
             index,
             delta,
-            covariance,
+            turn.covariance,
             self._camera_kernel,
             self._camera_width,
             source="camera_long_turn",

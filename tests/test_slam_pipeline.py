@@ -264,7 +264,7 @@ def test_a_long_turn_holds_the_camera_s_turn_over_seconds_of_unbroken_tracking()
     assert [(t.old_index, i) for i, t in turns] == [(1, 6), (6, 11)]
     for _, turn in turns:
         assert turn.yaw_rad == pytest.approx(0.2 * 2.0, abs=1e-6)
-        assert turn.variance == pytest.approx(np.radians(1.0) ** 2)
+        np.testing.assert_allclose(np.diag(turn.covariance), [1e4, 1e4, np.radians(1.0) ** 2])
     # A lost frame at 3 s (keyframe 7 at 2.8 s is before it) breaks the span: the next
     # keyframe seen tracked starts a new one, and no turn crosses the loss.
     turns = _feed_long_turns(_long_turn_maker(), lost_at_s=3.0)
